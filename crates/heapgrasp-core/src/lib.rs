@@ -28,9 +28,12 @@ pub mod nms;
 pub mod occupancy;
 pub mod parallel;
 pub mod projector;
+pub mod raster;
+pub mod score;
 pub mod tsdf;
 
 pub use camera::{poses_from_flat, PinholeCamera, Pose};
 pub use error::{Error, Result};
 pub use grid::GridSpec;
 pub use occupancy::OccupancyGrid;
+pub use raster::MeshScene;

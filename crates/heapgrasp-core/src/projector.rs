@@ -107,6 +107,11 @@ impl VoxelProjector {
         std::array::from_fn(|k| self.p0[k] + a * self.ea[k] + b * self.eb[k] + c * self.ec[k])
     }
 
+    /// `[P0, Ea, Eb, Ec]` in f32: camera point of voxel `[a, b, c]` is `P0 + a·Ea + b·Eb + c·Ec`.
+    pub(crate) fn affine_f32(&self) -> [[f32; 3]; 4] {
+        [self.p0, self.ea, self.eb, self.ec].map(|v| v.map(|x| x as f32))
+    }
+
     /// The column `(a, b, ·)`.
     #[inline]
     pub(crate) fn column(&self, a: usize, b: usize) -> Column {

@@ -1,0 +1,756 @@
+//! Ground-truth silhouettes, depth and labels of triangle meshes: the fast mask source
+//! for simulation and for the hypothetical views of eq. 14.
+//!
+//! # Semantics
+//! A pixel `(u, v)` is set iff the ray from the camera centre through the pixel centre
+//! (continuous image coordinates exactly `(u, v)`, see [`crate::camera`]) hits a
+//! triangle in front of the camera; depth is the camera-frame z of the nearest hit.
+//! Rays through a pixel centre lying exactly on a triangle edge count as hits.
+//!
+//! # Method
+//! Triangles are rasterised in homogeneous coordinates: with the vertices `V0, V1, V2`
+//! in the camera frame and the ray direction `d = ((u-cx)/fx, (v-cy)/fy, 1)`, the ray
+//! hits the triangle iff the three edge functions `d·(V1×V2)`, `d·(V2×V0)`, `d·(V0×V1)`
+//! share the sign of `det = V0·(V1×V2)`; the hit depth is `det / Σ eᵢ`. This is exact ray
+//! casting done per row: each row's covered pixels form one interval found from three
+//! linear inequalities, so a mask row is filled with a memset. No near-plane clipping is
+//! needed, and two triangles sharing an edge evaluate that edge with exactly negated
+//! coefficients, so closed silhouettes have no cracks.
+//!
+//! Closed, consistently oriented meshes (every edge shared by exactly two faces with
+//! opposite directions) skip back faces when the camera is outside their bounding
+//! sphere: the first hit of any ray is then a front face, so the result is unchanged.
+//! [`MeshScene::cast_ray`] answers single rays exactly with parry3d's BVH.
+
+use std::collections::{BTreeMap, HashMap};
+
+use nalgebra::{Point3, Vector3};
+use parry3d::math::Vector as PVec;
+use parry3d::query::{Ray, RayCast};
+use parry3d::shape::TriMesh;
+
+use crate::camera::{PinholeCamera, Pose};
+use crate::error::{Error, Result};
+
+/// Largest accepted vertex or face count of one mesh.
+pub const MAX_MESH_ELEMENTS: usize = 1 << 26;
+
+/// One rigid triangle mesh of a [`MeshScene`].
+#[derive(Clone)]
+struct Mesh {
+    vertices: Vec<[f64; 3]>,
+    faces: Vec<[u32; 3]>,
+    obj2world: Pose,
+    /// +1 / -1: sign of the enclosed volume of a closed mesh (outward CCW = +1); 0 if open.
+    orientation: f64,
+    sphere_center: Point3<f64>,
+    sphere_radius: f64,
+    bvh: TriMesh,
+}
+
+/// An inclusive pixel rectangle `[u0, u1] × [v0, v1]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PixelRect {
+    /// First column.
+    pub u0: u32,
+    /// Last column (inclusive).
+    pub u1: u32,
+    /// First row.
+    pub v0: u32,
+    /// Last row (inclusive).
+    pub v1: u32,
+}
+
+impl PixelRect {
+    /// The whole image of `camera`.
+    pub fn full(camera: &PinholeCamera) -> Self {
+        Self {
+            u0: 0,
+            u1: camera.width - 1,
+            v0: 0,
+            v1: camera.height - 1,
+        }
+    }
+}
+
+/// A set of rigid triangle meshes with world poses.
+#[derive(Clone, Default)]
+pub struct MeshScene {
+    meshes: BTreeMap<u64, Mesh>,
+    next_id: u64,
+}
+
+impl std::fmt::Debug for MeshScene {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MeshScene")
+            .field("meshes", &self.meshes.len())
+            .field("triangles", &self.triangle_count())
+            .finish()
+    }
+}
+
+impl MeshScene {
+    /// An empty scene.
+    pub fn new() -> Self {
+        Self {
+            meshes: BTreeMap::new(),
+            next_id: 1,
+        }
+    }
+
+    /// Adds a mesh (`vertices`: V×3 object-frame coordinates, flat; `faces`: F×3 vertex
+    /// indices, flat) at pose `obj2world`, and returns its id (ids start at 1 and are
+    /// never reused, so 0 can mean "background" in label images).
+    ///
+    /// # Errors
+    /// [`Error::Shape`] if a buffer is not a multiple of 3 long; [`Error::NonFinite`] for
+    /// NaN/inf vertices; [`Error::Mesh`] for no faces, fewer than 3 vertices, a face
+    /// index out of range, or more than [`MAX_MESH_ELEMENTS`] elements.
+    pub fn add_mesh(&mut self, vertices: &[f64], faces: &[u32], obj2world: Pose) -> Result<u64> {
+        let mesh = Mesh::new(vertices, faces, obj2world)?;
+        let id = self.next_id.max(1);
+        self.next_id = id + 1;
+        self.meshes.insert(id, mesh);
+        Ok(id)
+    }
+
+    /// Moves mesh `id` to `obj2world`.
+    ///
+    /// # Errors
+    /// [`Error::UnknownMesh`] if the scene holds no such mesh.
+    pub fn set_pose(&mut self, id: u64, obj2world: Pose) -> Result<()> {
+        let mesh = self.meshes.get_mut(&id).ok_or(Error::UnknownMesh { id })?;
+        mesh.obj2world = obj2world;
+        Ok(())
+    }
+
+    /// The pose of mesh `id`.
+    ///
+    /// # Errors
+    /// [`Error::UnknownMesh`] if the scene holds no such mesh.
+    pub fn pose(&self, id: u64) -> Result<Pose> {
+        self.meshes
+            .get(&id)
+            .map(|m| m.obj2world)
+            .ok_or(Error::UnknownMesh { id })
+    }
+
+    /// Removes mesh `id`.
+    ///
+    /// # Errors
+    /// [`Error::UnknownMesh`] if the scene holds no such mesh.
+    pub fn remove(&mut self, id: u64) -> Result<()> {
+        self.meshes
+            .remove(&id)
+            .map(|_| ())
+            .ok_or(Error::UnknownMesh { id })
+    }
+
+    /// Ids of the meshes, ascending.
+    pub fn ids(&self) -> Vec<u64> {
+        self.meshes.keys().copied().collect()
+    }
+
+    /// Number of meshes.
+    pub fn len(&self) -> usize {
+        self.meshes.len()
+    }
+
+    /// Whether the scene holds no mesh.
+    pub fn is_empty(&self) -> bool {
+        self.meshes.is_empty()
+    }
+
+    /// Total number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.meshes.values().map(|m| m.faces.len()).sum()
+    }
+
+    /// Whether mesh `id` is closed and consistently oriented (back faces may be culled).
+    ///
+    /// # Errors
+    /// [`Error::UnknownMesh`] if the scene holds no such mesh.
+    pub fn is_closed(&self, id: u64) -> Result<bool> {
+        self.meshes
+            .get(&id)
+            .map(|m| m.orientation != 0.0)
+            .ok_or(Error::UnknownMesh { id })
+    }
+
+    /// The silhouette mask, `(height, width)` row-major, 1 where a ray hits a mesh.
+    pub fn render_mask(&self, camera: &PinholeCamera, cam2world: &Pose) -> Vec<u8> {
+        let mut out = vec![0u8; camera.pixel_count()];
+        let mut scratch = Vec::new();
+        self.render_mask_into(
+            camera,
+            cam2world,
+            PixelRect::full(camera),
+            &mut out,
+            &mut scratch,
+        );
+        out
+    }
+
+    /// Renders the silhouette inside `rect` into `out` (a camera-sized buffer): pixels
+    /// of `rect` are set to 0 or 1, pixels outside it are left as they are. `scratch`
+    /// is reused between calls to avoid allocation.
+    pub fn render_mask_into(
+        &self,
+        camera: &PinholeCamera,
+        cam2world: &Pose,
+        rect: PixelRect,
+        out: &mut [u8],
+        scratch: &mut Vec<[f64; 3]>,
+    ) {
+        let w = camera.width as usize;
+        for v in rect.v0..=rect.v1 {
+            let row = v as usize * w;
+            out[row + rect.u0 as usize..=row + rect.u1 as usize].fill(0);
+        }
+        self.rasterize(camera, cam2world, rect, scratch, |row, u0, u1, _| {
+            out[row * w + u0..=row * w + u1].fill(1);
+        });
+    }
+
+    /// Depth (camera-frame z of the nearest hit, metres; 0 where no mesh is hit) and
+    /// labels (id of the nearest mesh; 0 where none), both `(height, width)` row-major.
+    pub fn render_depth_labels(
+        &self,
+        camera: &PinholeCamera,
+        cam2world: &Pose,
+    ) -> (Vec<f32>, Vec<u32>) {
+        let n = camera.pixel_count();
+        let w = camera.width as usize;
+        let mut depth = vec![f64::INFINITY; n];
+        let mut labels = vec![0u32; n];
+        let mut scratch = Vec::new();
+        let (fx, cx) = (camera.fx, camera.cx);
+        self.rasterize(
+            camera,
+            cam2world,
+            PixelRect::full(camera),
+            &mut scratch,
+            |row, u0, u1, tri| {
+                for u in u0..=u1 {
+                    let x = (u as f64 - cx) / fx;
+                    let sum = tri.alpha_sum * x + tri.beta_sum;
+                    let z = tri.det / sum;
+                    let i = row * w + u;
+                    if z > 0.0 && z < depth[i] {
+                        depth[i] = z;
+                        labels[i] = tri.id as u32;
+                    }
+                }
+            },
+        );
+        let depth = depth
+            .into_iter()
+            .map(|z| if z.is_finite() { z as f32 } else { 0.0 })
+            .collect();
+        (depth, labels)
+    }
+
+    /// Depth image only; see [`MeshScene::render_depth_labels`].
+    pub fn render_depth(&self, camera: &PinholeCamera, cam2world: &Pose) -> Vec<f32> {
+        self.render_depth_labels(camera, cam2world).0
+    }
+
+    /// Casts a ray from `origin` along `direction` (world frame; need not be unit
+    /// length) and returns the distance to the first hit (metres along the normalised
+    /// direction) and the id of the mesh hit, or `None`.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] or [`Error::Value`] for a non-finite or zero direction.
+    pub fn cast_ray(&self, origin: [f64; 3], direction: [f64; 3]) -> Result<Option<(f64, u64)>> {
+        for (name, v) in [("origin", origin), ("direction", direction)] {
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(Error::NonFinite {
+                    name: name.to_owned(),
+                    position: format!("[{i}]"),
+                });
+            }
+        }
+        let dir = Vector3::from(direction);
+        let norm = dir.norm();
+        if !(norm > 0.0) {
+            return Err(Error::value(
+                "direction",
+                format!("{direction:?}"),
+                "must be non-zero",
+            ));
+        }
+        let dir = dir / norm;
+        let mut best: Option<(f64, u64)> = None;
+        for (&id, mesh) in &self.meshes {
+            let w2o = mesh.obj2world.inverse();
+            let o = w2o.transform_point(&Point3::from(origin));
+            let d = w2o.rotation() * dir;
+            let ray = Ray::new(
+                PVec::new(o.x as f32, o.y as f32, o.z as f32),
+                PVec::new(d.x as f32, d.y as f32, d.z as f32),
+            );
+            let limit = best.map_or(f32::MAX, |(t, _)| t as f32);
+            if let Some(t) = mesh.bvh.cast_local_ray(&ray, limit, false) {
+                let t = f64::from(t);
+                if best.is_none_or(|(b, _)| t < b) {
+                    best = Some((t, id));
+                }
+            }
+        }
+        Ok(best)
+    }
+
+    /// Core loop: calls `span(row, u0, u1, tri)` for every maximal run of covered pixel
+    /// centres of every (non-culled) triangle inside `rect`.
+    fn rasterize<F>(
+        &self,
+        camera: &PinholeCamera,
+        cam2world: &Pose,
+        rect: PixelRect,
+        scratch: &mut Vec<[f64; 3]>,
+        mut span: F,
+    ) where
+        F: FnMut(usize, usize, usize, &TriangleRow),
+    {
+        let world2cam = cam2world.inverse();
+        let cam_center_world = Point3::from(*cam2world.translation());
+        for (&id, mesh) in &self.meshes {
+            let o2c = world2cam.compose(&mesh.obj2world);
+            // Object-level culling against the bounding sphere.
+            let sc = o2c.transform_point(&mesh.sphere_center);
+            let r = mesh.sphere_radius;
+            if sc.z + r <= 0.0 || !sphere_may_touch(camera, &sc, r, rect) {
+                continue;
+            }
+            let cull = mesh.orientation != 0.0
+                && (mesh.obj2world.transform_point(&mesh.sphere_center) - cam_center_world).norm()
+                    > r;
+            scratch.clear();
+            scratch.extend(mesh.vertices.iter().map(|p| {
+                let q = o2c.transform_point(&Point3::from(*p));
+                [q.x, q.y, q.z]
+            }));
+            for f in &mesh.faces {
+                let [a, b, c] = f.map(|i| Vector3::from(scratch[i as usize]));
+                let n0 = b.cross(&c);
+                let det = a.dot(&n0);
+                if det == 0.0 || (cull && det * mesh.orientation > 0.0) {
+                    continue;
+                }
+                rasterize_triangle(
+                    camera,
+                    rect,
+                    id,
+                    [a, b, c],
+                    [n0, c.cross(&a), a.cross(&b)],
+                    det,
+                    &mut span,
+                );
+            }
+        }
+    }
+}
+
+/// Per-triangle data handed to span callbacks (for depth: `z = det / (alpha_sum·x + beta_sum)`
+/// with `x = (u - cx) / fx`, on the current row).
+pub(crate) struct TriangleRow {
+    id: u64,
+    det: f64,
+    alpha_sum: f64,
+    beta_sum: f64,
+}
+
+/// Whether a camera-frame sphere can cover a pixel centre of `rect` (conservative).
+fn sphere_may_touch(camera: &PinholeCamera, c: &Point3<f64>, r: f64, rect: PixelRect) -> bool {
+    let zl = c.z - r;
+    if zl <= 1e-9 {
+        return true; // straddles the camera plane: no cheap bound
+    }
+    let zh = c.z + r;
+    let bound = |lo: f64, hi: f64, f: f64, cc: f64| {
+        let q = [lo / zl, lo / zh, hi / zl, hi / zh];
+        let mn = q.iter().copied().fold(f64::INFINITY, f64::min);
+        let mx = q.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (f * mn + cc, f * mx + cc)
+    };
+    let (u_lo, u_hi) = bound(c.x - r, c.x + r, camera.fx, camera.cx);
+    let (v_lo, v_hi) = bound(c.y - r, c.y + r, camera.fy, camera.cy);
+    u_hi >= rect.u0 as f64 - 1.0
+        && u_lo <= rect.u1 as f64 + 1.0
+        && v_hi >= rect.v0 as f64 - 1.0
+        && v_lo <= rect.v1 as f64 + 1.0
+}
+
+#[inline]
+fn rasterize_triangle<F>(
+    camera: &PinholeCamera,
+    rect: PixelRect,
+    id: u64,
+    verts: [Vector3<f64>; 3],
+    normals: [Vector3<f64>; 3],
+    det: f64,
+    span: &mut F,
+) where
+    F: FnMut(usize, usize, usize, &TriangleRow),
+{
+    // Row range: the projected bounding box when all vertices are in front, else all rows.
+    let (mut v_lo, mut v_hi) = (rect.v0 as f64, rect.v1 as f64);
+    let (mut u_lo_box, mut u_hi_box) = (rect.u0 as f64, rect.u1 as f64);
+    if verts.iter().all(|p| p.z <= 0.0) {
+        return;
+    }
+    if verts.iter().all(|p| p.z > 0.0) {
+        let us = verts.map(|p| camera.fx * p.x / p.z + camera.cx);
+        let vs = verts.map(|p| camera.fy * p.y / p.z + camera.cy);
+        let (umin, umax) = (
+            us.iter().copied().fold(f64::INFINITY, f64::min),
+            us.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        );
+        let (vmin, vmax) = (
+            vs.iter().copied().fold(f64::INFINITY, f64::min),
+            vs.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        );
+        // One pixel of slack: the exact decision is made by the edge functions below.
+        v_lo = v_lo.max((vmin - 1.0).ceil());
+        v_hi = v_hi.min((vmax + 1.0).floor());
+        u_lo_box = u_lo_box.max((umin - 1.0).ceil());
+        u_hi_box = u_hi_box.min((umax + 1.0).floor());
+        if v_lo > v_hi || u_lo_box > u_hi_box {
+            return;
+        }
+    }
+    let s = det.signum();
+    let (fx, fy, cx, cy) = (camera.fx, camera.fy, camera.cx, camera.cy);
+    // eᵢ(u, v) = αᵢ·u + βᵢ(v) with αᵢ = s·Aᵢ/fx, βᵢ(v) = s·(Bᵢ·y + Cᵢ) − αᵢ·cx, y = (v−cy)/fy.
+    let alpha = normals.map(|n| s * n.x / fx);
+    let mut tri = TriangleRow {
+        id,
+        det: s * det,
+        alpha_sum: 0.0,
+        beta_sum: 0.0,
+    };
+    // For depth, Σeᵢ is expressed in x = (u − cx)/fx: Σ s(Aᵢ x + Bᵢ y + Cᵢ).
+    tri.alpha_sum = normals.iter().map(|n| s * n.x).sum();
+    let mut v = v_lo as i64;
+    while v <= v_hi as i64 {
+        let y = (v as f64 - cy) / fy;
+        let mut lo = u_lo_box;
+        let mut hi = u_hi_box;
+        let mut empty = false;
+        for k in 0..3 {
+            let n = normals[k];
+            let beta = s * (n.y * y + n.z) - alpha[k] * cx;
+            let a = alpha[k];
+            if a > 0.0 {
+                lo = lo.max((-beta / a).ceil());
+            } else if a < 0.0 {
+                hi = hi.min((-beta / a).floor());
+            } else if beta < 0.0 {
+                empty = true;
+            }
+        }
+        if !empty && lo <= hi {
+            tri.beta_sum = normals.iter().map(|n| s * (n.y * y + n.z)).sum();
+            span(v as usize, lo as usize, hi as usize, &tri);
+        }
+        v += 1;
+    }
+}
+
+impl Mesh {
+    fn new(vertices: &[f64], faces: &[u32], obj2world: Pose) -> Result<Self> {
+        if vertices.len() % 3 != 0 {
+            return Err(Error::shape(
+                "vertices",
+                "(V, 3)",
+                format!("{} values", vertices.len()),
+            ));
+        }
+        if faces.len() % 3 != 0 {
+            return Err(Error::shape(
+                "faces",
+                "(F, 3)",
+                format!("{} values", faces.len()),
+            ));
+        }
+        let nv = vertices.len() / 3;
+        let nf = faces.len() / 3;
+        if nv < 3 || nf == 0 {
+            return Err(Error::Mesh {
+                name: "faces".into(),
+                reason: format!("need at least 3 vertices and 1 face, got {nv} and {nf}"),
+            });
+        }
+        if nv > MAX_MESH_ELEMENTS || nf > MAX_MESH_ELEMENTS {
+            return Err(Error::Mesh {
+                name: "vertices".into(),
+                reason: format!(
+                    "at most {MAX_MESH_ELEMENTS} vertices and faces, got {nv} and {nf}"
+                ),
+            });
+        }
+        if let Some(i) = vertices.iter().position(|x| !x.is_finite()) {
+            return Err(Error::NonFinite {
+                name: "vertices".into(),
+                position: format!("[{}, {}]", i / 3, i % 3),
+            });
+        }
+        if let Some(i) = faces.iter().position(|&f| f as usize >= nv) {
+            return Err(Error::Mesh {
+                name: "faces".into(),
+                reason: format!(
+                    "faces[{}, {}] = {} is not a vertex index (V = {nv})",
+                    i / 3,
+                    i % 3,
+                    faces[i]
+                ),
+            });
+        }
+        let verts: Vec<[f64; 3]> = vertices
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect();
+        let tris: Vec<[u32; 3]> = faces.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let orientation = closed_orientation(&verts, &tris);
+        let (lo, hi) = verts.iter().fold(
+            ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+            |(lo, hi), p| {
+                (
+                    std::array::from_fn(|k| lo[k].min(p[k])),
+                    std::array::from_fn(|k| hi[k].max(p[k])),
+                )
+            },
+        );
+        let sphere_center = Point3::from(std::array::from_fn(|k| 0.5 * (lo[k] + hi[k])));
+        let sphere_radius = verts
+            .iter()
+            .map(|p| (Point3::from(*p) - sphere_center).norm())
+            .fold(0.0, f64::max)
+            * (1.0 + 1e-9)
+            + 1e-12;
+        let bvh = TriMesh::new(
+            verts
+                .iter()
+                .map(|p| PVec::new(p[0] as f32, p[1] as f32, p[2] as f32))
+                .collect(),
+            tris.clone(),
+        )
+        .map_err(|e| Error::Mesh {
+            name: "faces".into(),
+            reason: format!("{e:?}"),
+        })?;
+        Ok(Self {
+            vertices: verts,
+            faces: tris,
+            obj2world,
+            orientation,
+            sphere_center,
+            sphere_radius,
+            bvh,
+        })
+    }
+}
+
+/// +1 or -1 (sign of the enclosed volume) for a closed, consistently oriented mesh whose
+/// every directed edge appears once and is matched by its reverse; 0 otherwise.
+fn closed_orientation(verts: &[[f64; 3]], tris: &[[u32; 3]]) -> f64 {
+    let mut edges: HashMap<(u32, u32), u32> = HashMap::with_capacity(tris.len() * 3);
+    for t in tris {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            if a == b {
+                return 0.0;
+            }
+            *edges.entry((a, b)).or_insert(0) += 1;
+        }
+    }
+    let closed = edges
+        .iter()
+        .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1));
+    if !closed {
+        return 0.0;
+    }
+    let volume: f64 = tris
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| Vector3::from(verts[i as usize]));
+            a.dot(&b.cross(&c))
+        })
+        .sum();
+    if volume > 0.0 {
+        1.0
+    } else if volume < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// Axis-aligned box centred at the origin, outward CCW faces.
+    pub(crate) fn box_mesh(hx: f64, hy: f64, hz: f64) -> (Vec<f64>, Vec<u32>) {
+        let mut v = Vec::new();
+        for i in 0..8 {
+            v.extend([
+                if i & 1 == 0 { -hx } else { hx },
+                if i & 2 == 0 { -hy } else { hy },
+                if i & 4 == 0 { -hz } else { hz },
+            ]);
+        }
+        let f = vec![
+            0, 2, 1, 1, 2, 3, // z-
+            4, 5, 6, 5, 7, 6, // z+
+            0, 1, 4, 1, 5, 4, // y-
+            2, 6, 3, 3, 6, 7, // y+
+            0, 4, 2, 2, 4, 6, // x-
+            1, 3, 5, 3, 7, 5, // x+
+        ];
+        (v, f)
+    }
+
+    fn translation(x: f64, y: f64, z: f64) -> Pose {
+        Pose::from_row_major(
+            "p",
+            &[
+                1.0, 0.0, 0.0, x, 0.0, 1.0, 0.0, y, 0.0, 0.0, 1.0, z, 0.0, 0.0, 0.0, 1.0,
+            ],
+        )
+        .unwrap()
+    }
+
+    fn camera() -> PinholeCamera {
+        PinholeCamera::new(64, 48, 60.0, 60.0, 31.5, 23.5).unwrap()
+    }
+
+    fn scene() -> (MeshScene, Pose) {
+        let mut s = MeshScene::new();
+        let (v, f) = box_mesh(0.05, 0.03, 0.04);
+        s.add_mesh(&v, &f, translation(0.02, -0.01, 0.0)).unwrap();
+        let (v, f) = box_mesh(0.02, 0.02, 0.02);
+        s.add_mesh(&v, &f, translation(-0.06, 0.05, 0.05)).unwrap();
+        let cam2world = Pose::look_at([0.25, 0.2, 0.3], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0]).unwrap();
+        (s, cam2world)
+    }
+
+    #[test]
+    fn boxes_are_closed() {
+        let (s, _) = scene();
+        assert!(s.ids().iter().all(|&id| s.is_closed(id).unwrap()));
+    }
+
+    #[test]
+    fn mask_depth_and_labels_agree_with_parry_ray_casts() {
+        let (s, cam2world) = scene();
+        let cam = camera();
+        let mask = s.render_mask(&cam, &cam2world);
+        let (depth, labels) = s.render_depth_labels(&cam, &cam2world);
+        let mut hits = 0;
+        for v in 0..cam.height {
+            for u in 0..cam.width {
+                let i = (v * cam.width + u) as usize;
+                let d_cam = cam.pixel_ray(u as f64, v as f64);
+                let d_world = cam2world.rotation() * d_cam;
+                let o = cam2world.translation();
+                let hit = s
+                    .cast_ray([o.x, o.y, o.z], [d_world.x, d_world.y, d_world.z])
+                    .unwrap();
+                assert_eq!(mask[i] == 1, hit.is_some(), "pixel ({u}, {v})");
+                assert_eq!(mask[i] == 1, depth[i] > 0.0);
+                if let Some((t, id)) = hit {
+                    hits += 1;
+                    let z = t / d_cam.norm();
+                    assert!(
+                        (f64::from(depth[i]) - z).abs() < 1e-4,
+                        "depth at ({u}, {v})"
+                    );
+                    assert_eq!(labels[i] as u64, id);
+                }
+            }
+        }
+        assert!(hits > 100, "the boxes should cover part of the image");
+    }
+
+    #[test]
+    fn culling_does_not_change_the_mask_of_closed_meshes() {
+        let (s, cam2world) = scene();
+        let cam = camera();
+        let mask = s.render_mask(&cam, &cam2world);
+        // The same boxes with one face duplicated are open: nothing is culled.
+        let mut open = MeshScene::new();
+        for id in s.ids() {
+            let m = &s.meshes[&id];
+            let mut f: Vec<u32> = m.faces.iter().flatten().copied().collect();
+            f.extend_from_slice(&f[0..3].to_vec());
+            let v: Vec<f64> = m.vertices.iter().flatten().copied().collect();
+            let nid = open.add_mesh(&v, &f, m.obj2world).unwrap();
+            assert!(!open.is_closed(nid).unwrap());
+        }
+        assert_eq!(open.render_mask(&cam, &cam2world), mask);
+    }
+
+    #[test]
+    fn camera_inside_a_box_sees_it_everywhere() {
+        let mut s = MeshScene::new();
+        let (v, f) = box_mesh(1.0, 1.0, 1.0);
+        s.add_mesh(&v, &f, Pose::identity()).unwrap();
+        let cam = camera();
+        let mask = s.render_mask(&cam, &Pose::identity());
+        assert!(mask.iter().all(|&m| m == 1));
+        let depth = s.render_depth(&cam, &Pose::identity());
+        assert!((f64::from(depth[(24 * 64 + 32) as usize]) - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn meshes_behind_the_camera_are_invisible() {
+        let mut s = MeshScene::new();
+        let (v, f) = box_mesh(0.1, 0.1, 0.1);
+        s.add_mesh(&v, &f, translation(0.0, 0.0, -1.0)).unwrap();
+        assert!(s
+            .render_mask(&camera(), &Pose::identity())
+            .iter()
+            .all(|&m| m == 0));
+    }
+
+    #[test]
+    fn scissored_rendering_matches_the_full_render_inside_the_rect() {
+        let (s, cam2world) = scene();
+        let cam = camera();
+        let full = s.render_mask(&cam, &cam2world);
+        let rect = PixelRect {
+            u0: 10,
+            u1: 40,
+            v0: 5,
+            v1: 30,
+        };
+        let mut out = vec![7u8; cam.pixel_count()];
+        s.render_mask_into(&cam, &cam2world, rect, &mut out, &mut Vec::new());
+        for v in 0..cam.height {
+            for u in 0..cam.width {
+                let i = (v * cam.width + u) as usize;
+                let inside = (10..=40).contains(&u) && (5..=30).contains(&v);
+                assert_eq!(out[i], if inside { full[i] } else { 7 });
+            }
+        }
+    }
+
+    #[test]
+    fn bad_meshes_and_ids_are_rejected() {
+        let mut s = MeshScene::new();
+        assert!(matches!(
+            s.add_mesh(&[0.0; 9], &[0, 1, 3], Pose::identity()),
+            Err(Error::Mesh { .. })
+        ));
+        assert!(matches!(
+            s.add_mesh(&[0.0; 8], &[0, 1, 2], Pose::identity()),
+            Err(Error::Shape { .. })
+        ));
+        assert!(matches!(
+            s.add_mesh(&[f64::NAN; 9], &[0, 1, 2], Pose::identity()),
+            Err(Error::NonFinite { .. })
+        ));
+        assert!(matches!(s.remove(42), Err(Error::UnknownMesh { id: 42 })));
+        assert!(s.cast_ray([0.0; 3], [0.0; 3]).is_err());
+    }
+}
