@@ -1,1 +1,49 @@
-//! placeholder
+//! `heapgrasp._core`: thin pyo3 bindings of `heapgrasp-core`.
+//!
+//! Each file wraps one core module: it validates and borrows the NumPy arguments
+//! ([`convert`]), releases the GIL around the core call, and maps core errors onto the
+//! `HeapgraspError` hierarchy ([`errors`]). No algorithm lives here.
+
+mod camera;
+mod convert;
+mod errors;
+mod filter;
+mod occupancy;
+mod raster;
+mod score;
+mod tsdf;
+
+use pyo3::prelude::*;
+
+/// Name of the SIMD build of the carving kernel in use: "avx512", "avx2" or "baseline".
+#[pyfunction]
+fn kernel_level() -> &'static str {
+    match heapgrasp_core::carve::kernel_level() {
+        heapgrasp_core::carve::KernelLevel::Avx512 => "avx512",
+        heapgrasp_core::carve::KernelLevel::Avx2 => "avx2",
+        heapgrasp_core::carve::KernelLevel::Baseline => "baseline",
+    }
+}
+
+/// Number of threads the kernels use (`HEAPGRASP_NUM_THREADS` or the CPU count).
+#[pyfunction]
+fn num_threads() -> usize {
+    heapgrasp_core::parallel::num_threads()
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    errors::register(m)?;
+    m.add_class::<camera::PyPinholeCamera>()?;
+    m.add_class::<occupancy::PyOccupancyGrid>()?;
+    m.add_class::<raster::PyMeshScene>()?;
+    m.add_class::<tsdf::PyTsdfVolume>()?;
+    m.add_function(wrap_pyfunction!(score::score_views, m)?)?;
+    m.add_function(wrap_pyfunction!(filter::gaussian_filter3d, m)?)?;
+    m.add_function(wrap_pyfunction!(filter::maximum_filter3d, m)?)?;
+    m.add_function(wrap_pyfunction!(filter::nms3d, m)?)?;
+    m.add_function(wrap_pyfunction!(kernel_level, m)?)?;
+    m.add_function(wrap_pyfunction!(num_threads, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -274,7 +274,7 @@ impl Pose {
 /// [`Error::Shape`] when the length is not a multiple of 16; otherwise the first error of
 /// [`Pose::from_row_major`], with the pose index in the name (e.g. `cam2worlds[3]`).
 pub fn poses_from_flat(name: &str, flat: &[f64]) -> Result<Vec<Pose>> {
-    if flat.len() % 16 != 0 {
+    if !flat.len().is_multiple_of(16) {
         return Err(Error::shape(
             name,
             "(N, 4, 4)",

@@ -194,7 +194,7 @@ mod tests {
         let mut occ = OccupancyGrid::new(grid);
         occ.integrate(&cam, &pose, &vec![1u8; cam.pixel_count()])
             .unwrap();
-        assert!(occ.visible().iter().any(|&v| v == 1));
+        assert!(occ.visible().contains(&1));
         assert_eq!(occ.segmented(), occ.visible());
         assert_eq!(
             occ.count_high_confidence(0.9),

@@ -459,14 +459,14 @@ fn rasterize_triangle<F>(
 
 impl Mesh {
     fn new(vertices: &[f64], faces: &[u32], obj2world: Pose) -> Result<Self> {
-        if vertices.len() % 3 != 0 {
+        if !vertices.len().is_multiple_of(3) {
             return Err(Error::shape(
                 "vertices",
                 "(V, 3)",
                 format!("{} values", vertices.len()),
             ));
         }
-        if faces.len() % 3 != 0 {
+        if !faces.len().is_multiple_of(3) {
             return Err(Error::shape(
                 "faces",
                 "(F, 3)",
@@ -682,7 +682,7 @@ pub(crate) mod tests {
         for id in s.ids() {
             let m = &s.meshes[&id];
             let mut f: Vec<u32> = m.faces.iter().flatten().copied().collect();
-            f.extend_from_slice(&f[0..3].to_vec());
+            f.extend_from_within(0..3);
             let v: Vec<f64> = m.vertices.iter().flatten().copied().collect();
             let nid = open.add_mesh(&v, &f, m.obj2world).unwrap();
             assert!(!open.is_closed(nid).unwrap());

@@ -1,0 +1,217 @@
+//! `OccupancyGrid`.
+
+use heapgrasp_core::occupancy::check_lambda;
+use heapgrasp_core::{GridSpec, OccupancyGrid};
+use numpy::{PyArray1, PyArray3, PyArrayMethods};
+use pyo3::prelude::*;
+
+use crate::camera::PyPinholeCamera;
+use crate::convert::{array_arg, check_tail, detached, mask_arg, pose_arg, poses_arg, vec3_arg};
+use crate::errors::{IntoPyResult, ShapeError};
+
+/// `(segmented, visible)` count volumes.
+type CountArrays<'py> = (Bound<'py, PyArray3<u32>>, Bound<'py, PyArray3<u32>>);
+
+/// Silhouette counts on a cubic voxel grid (HEAPGrasp eq. 9–10).
+#[pyclass(name = "OccupancyGrid", module = "heapgrasp._core")]
+pub struct PyOccupancyGrid {
+    pub inner: OccupancyGrid,
+}
+
+pub(crate) fn spec_args(
+    origin: &Bound<'_, PyAny>,
+    size: f64,
+    resolution: i64,
+) -> PyResult<GridSpec> {
+    let origin = vec3_arg(origin, "origin")?;
+    let r = usize::try_from(resolution).map_err(|_| {
+        crate::errors::InvalidValueError::new_err(format!(
+            "resolution: must be between 1 and 512 voxels per axis (got {resolution})"
+        ))
+    })?;
+    GridSpec::new(origin, size, r).py()
+}
+
+pub(crate) fn volume<'py, T: numpy::Element>(
+    py: Python<'py>,
+    r: usize,
+    data: Vec<T>,
+) -> PyResult<Bound<'py, PyArray3<T>>> {
+    PyArray1::from_vec(py, data).reshape([r, r, r])
+}
+
+#[pymethods]
+impl PyOccupancyGrid {
+    #[new]
+    #[pyo3(signature = (origin, size = 0.30, resolution = 40))]
+    fn new(origin: &Bound<'_, PyAny>, size: f64, resolution: i64) -> PyResult<Self> {
+        Ok(Self {
+            inner: OccupancyGrid::new(spec_args(origin, size, resolution)?),
+        })
+    }
+
+    /// Minimum corner of the cube (world frame, metres).
+    #[getter]
+    fn origin(&self) -> (f64, f64, f64) {
+        let o = self.inner.spec().origin();
+        (o[0], o[1], o[2])
+    }
+    /// Side of the cube (metres).
+    #[getter]
+    fn size(&self) -> f64 {
+        self.inner.spec().size()
+    }
+    /// Voxels per axis.
+    #[getter]
+    fn resolution(&self) -> usize {
+        self.inner.spec().resolution()
+    }
+    /// Side of one voxel (metres).
+    #[getter]
+    fn voxel_size(&self) -> f64 {
+        self.inner.spec().voxel_size()
+    }
+
+    /// Integrates one silhouette.
+    fn integrate(
+        &mut self,
+        py: Python<'_>,
+        mask: &Bound<'_, PyAny>,
+        camera: &PyPinholeCamera,
+        cam2world: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let m = mask_arg(mask, "mask", 2)?;
+        let cam = camera.inner;
+        check_tail(
+            "mask",
+            m.shape(),
+            &[cam.height as usize, cam.width as usize],
+            &format!("({}, {}) to match the camera", cam.height, cam.width),
+        )?;
+        let pose = pose_arg(cam2world, "cam2world")?;
+        let bytes = m.bytes();
+        let inner = &mut self.inner;
+        detached(py, move || inner.integrate(&cam, &pose, bytes))
+    }
+
+    /// Integrates N silhouettes; nothing changes if any input is invalid.
+    fn integrate_many(
+        &mut self,
+        py: Python<'_>,
+        masks: &Bound<'_, PyAny>,
+        camera: &PyPinholeCamera,
+        cam2worlds: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let m = mask_arg(masks, "masks", 3)?;
+        let cam = camera.inner;
+        check_tail(
+            "masks",
+            m.shape(),
+            &[cam.height as usize, cam.width as usize],
+            &format!("(N, {}, {}) to match the camera", cam.height, cam.width),
+        )?;
+        let poses = poses_arg(cam2worlds, "cam2worlds")?;
+        if poses.len() != m.shape()[0] {
+            return Err(ShapeError::new_err(format!(
+                "cam2worlds: expected one pose per mask ({}), got {}",
+                m.shape()[0],
+                poses.len()
+            )));
+        }
+        let bytes = m.bytes();
+        let inner = &mut self.inner;
+        detached(py, move || inner.integrate_many(&cam, &poses, bytes))
+    }
+
+    /// `(segmented, visible)` counts as uint32 (R, R, R) arrays.
+    fn counts<'py>(&self, py: Python<'py>) -> PyResult<CountArrays<'py>> {
+        let r = self.inner.spec().resolution();
+        Ok((
+            volume(py, r, self.inner.segmented().to_vec())?,
+            volume(py, r, self.inner.visible().to_vec())?,
+        ))
+    }
+
+    /// Occupancy (eq. 10) as float32 (R, R, R).
+    fn occupancy<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let r = self.inner.spec().resolution();
+        let inner = &self.inner;
+        let v = py.detach(|| inner.occupancy());
+        volume(py, r, v)
+    }
+
+    /// High-confidence grid: occupancy with values below `lam` set to 0.
+    #[pyo3(signature = (lam = 0.9))]
+    fn high_confidence<'py>(
+        &self,
+        py: Python<'py>,
+        lam: f64,
+    ) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let lam = check_lambda(lam).py()?;
+        let r = self.inner.spec().resolution();
+        let inner = &self.inner;
+        let v = py.detach(|| inner.high_confidence(lam));
+        volume(py, r, v)
+    }
+
+    /// Number of non-zero voxels of the high-confidence grid.
+    #[pyo3(signature = (lam = 0.9))]
+    fn count_high_confidence(&self, lam: f64) -> PyResult<usize> {
+        Ok(self.inner.count_high_confidence(check_lambda(lam).py()?))
+    }
+
+    /// Sets all counts back to 0.
+    fn reset(&mut self) {
+        self.inner.reset();
+    }
+
+    /// An independent copy.
+    fn copy(&self) -> Self {
+        Self {
+            inner: self.inner.clone(),
+        }
+    }
+
+    fn __copy__(&self) -> Self {
+        self.copy()
+    }
+
+    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
+        self.copy()
+    }
+
+    /// A grid with the given counts (uint32 (R, R, R) each).
+    #[staticmethod]
+    #[pyo3(signature = (origin, size, segmented, visible))]
+    fn from_counts(
+        origin: &Bound<'_, PyAny>,
+        size: f64,
+        segmented: &Bound<'_, PyAny>,
+        visible: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        let s = array_arg::<u32>(segmented, "segmented", "uint32", Some(3))?;
+        let v = array_arg::<u32>(visible, "visible", "uint32", Some(3))?;
+        let r = s.shape[0];
+        if s.shape != [r, r, r] || v.shape != s.shape {
+            return Err(ShapeError::new_err(format!(
+                "segmented, visible: expected two cubic (R, R, R) arrays of one shape, got {:?} and {:?}",
+                s.shape, v.shape
+            )));
+        }
+        let spec = spec_args(origin, size, r as i64)?;
+        Ok(Self {
+            inner: OccupancyGrid::from_counts(spec, s.as_slice().to_vec(), v.as_slice().to_vec())
+                .py()?,
+        })
+    }
+
+    fn __repr__(&self) -> String {
+        let s = self.inner.spec();
+        format!(
+            "OccupancyGrid(origin={:?}, size={}, resolution={})",
+            s.origin(),
+            s.size(),
+            s.resolution()
+        )
+    }
+}

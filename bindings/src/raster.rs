@@ -1,0 +1,178 @@
+//! `MeshScene`.
+
+use heapgrasp_core::MeshScene;
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
+use pyo3::prelude::*;
+
+use crate::camera::PyPinholeCamera;
+use crate::convert::{array_arg, check_tail, pose_arg, vec3_arg};
+use crate::errors::{IntoPyResult, MeshError};
+
+/// Rigid triangle meshes with world poses: ground-truth silhouettes, depth and labels.
+#[pyclass(name = "MeshScene", module = "heapgrasp._core")]
+pub struct PyMeshScene {
+    pub inner: MeshScene,
+}
+
+fn image<'py, T: numpy::Element>(
+    py: Python<'py>,
+    cam: &PyPinholeCamera,
+    data: Vec<T>,
+) -> PyResult<Bound<'py, PyArray2<T>>> {
+    PyArray1::from_vec(py, data).reshape([cam.inner.height as usize, cam.inner.width as usize])
+}
+
+#[pymethods]
+impl PyMeshScene {
+    #[new]
+    fn new() -> Self {
+        Self {
+            inner: MeshScene::new(),
+        }
+    }
+
+    /// Adds a mesh and returns its id (>= 1).
+    fn add_mesh(
+        &mut self,
+        vertices: &Bound<'_, PyAny>,
+        faces: &Bound<'_, PyAny>,
+        obj2world: &Bound<'_, PyAny>,
+    ) -> PyResult<u64> {
+        let v = array_arg::<f64>(vertices, "vertices", "float64", Some(2))?;
+        check_tail("vertices", &v.shape, &[3], "(V, 3)")?;
+        let faces_u32: Vec<u32> = if let Ok(f) = array_arg::<i64>(faces, "faces", "int64", Some(2))
+        {
+            check_tail("faces", &f.shape, &[3], "(F, 3)")?;
+            f.as_slice()
+                .iter()
+                .enumerate()
+                .map(|(i, &x)| {
+                    u32::try_from(x).map_err(|_| {
+                        MeshError::new_err(format!(
+                            "faces: invalid mesh: faces[{}, {}] = {x} is not a vertex index",
+                            i / 3,
+                            i % 3
+                        ))
+                    })
+                })
+                .collect::<PyResult<_>>()?
+        } else if let Ok(f) = array_arg::<i32>(faces, "faces", "int32", Some(2)) {
+            check_tail("faces", &f.shape, &[3], "(F, 3)")?;
+            f.as_slice()
+                .iter()
+                .enumerate()
+                .map(|(i, &x)| {
+                    u32::try_from(x).map_err(|_| {
+                        MeshError::new_err(format!(
+                            "faces: invalid mesh: faces[{}, {}] = {x} is not a vertex index",
+                            i / 3,
+                            i % 3
+                        ))
+                    })
+                })
+                .collect::<PyResult<_>>()?
+        } else {
+            let f = array_arg::<u32>(faces, "faces", "int64, int32 or uint32", Some(2))?;
+            check_tail("faces", &f.shape, &[3], "(F, 3)")?;
+            f.as_slice().to_vec()
+        };
+        let pose = pose_arg(obj2world, "obj2world")?;
+        self.inner.add_mesh(v.as_slice(), &faces_u32, pose).py()
+    }
+
+    /// Moves mesh `id`.
+    fn set_pose(&mut self, id: u64, obj2world: &Bound<'_, PyAny>) -> PyResult<()> {
+        let pose = pose_arg(obj2world, "obj2world")?;
+        self.inner.set_pose(id, pose).py()
+    }
+
+    /// The (4, 4) obj2world pose of mesh `id`.
+    fn pose<'py>(&self, py: Python<'py>, id: u64) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let m = self.inner.pose(id).py()?.to_matrix();
+        let flat: Vec<f64> = (0..16).map(|i| m[(i / 4, i % 4)]).collect();
+        PyArray1::from_vec(py, flat).reshape([4, 4])
+    }
+
+    /// Removes mesh `id`.
+    fn remove(&mut self, id: u64) -> PyResult<()> {
+        self.inner.remove(id).py()
+    }
+
+    /// Ids of the meshes, ascending.
+    fn ids(&self) -> Vec<u64> {
+        self.inner.ids()
+    }
+
+    /// Whether mesh `id` is closed and consistently oriented.
+    fn is_closed(&self, id: u64) -> PyResult<bool> {
+        self.inner.is_closed(id).py()
+    }
+
+    /// Total triangle count.
+    #[getter]
+    fn triangle_count(&self) -> usize {
+        self.inner.triangle_count()
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+
+    /// Silhouette mask, bool (H, W).
+    fn render_mask<'py>(
+        &self,
+        py: Python<'py>,
+        camera: &PyPinholeCamera,
+        cam2world: &Bound<'_, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<bool>>> {
+        let pose = pose_arg(cam2world, "cam2world")?;
+        let (scene, cam) = (&self.inner, camera.inner);
+        let mask = py.detach(|| scene.render_mask(&cam, &pose));
+        image(py, camera, mask.into_iter().map(|m| m != 0).collect())
+    }
+
+    /// Depth (camera z of the nearest hit, metres; 0 where nothing is hit), float32 (H, W).
+    fn render_depth<'py>(
+        &self,
+        py: Python<'py>,
+        camera: &PyPinholeCamera,
+        cam2world: &Bound<'_, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let pose = pose_arg(cam2world, "cam2world")?;
+        let (scene, cam) = (&self.inner, camera.inner);
+        let depth = py.detach(|| scene.render_depth(&cam, &pose));
+        image(py, camera, depth)
+    }
+
+    /// Id of the nearest mesh per pixel (0 = background), uint32 (H, W).
+    fn render_labels<'py>(
+        &self,
+        py: Python<'py>,
+        camera: &PyPinholeCamera,
+        cam2world: &Bound<'_, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<u32>>> {
+        let pose = pose_arg(cam2world, "cam2world")?;
+        let (scene, cam) = (&self.inner, camera.inner);
+        let (_, labels) = py.detach(|| scene.render_depth_labels(&cam, &pose));
+        image(py, camera, labels)
+    }
+
+    /// First hit of a world-frame ray: `(distance, id)` or None.
+    fn cast_ray(
+        &self,
+        origin: &Bound<'_, PyAny>,
+        direction: &Bound<'_, PyAny>,
+    ) -> PyResult<Option<(f64, u64)>> {
+        let o = vec3_arg(origin, "origin")?;
+        let d = vec3_arg(direction, "direction")?;
+        self.inner.cast_ray(o, d).py()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "MeshScene(meshes={}, triangles={})",
+            self.inner.len(),
+            self.inner.triangle_count()
+        )
+    }
+}

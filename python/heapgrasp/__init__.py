@@ -1,0 +1,60 @@
+"""heapgrasp: active-perception robotic grasping with a hand-eye camera.
+
+The geometric core (Rust, ``heapgrasp._core``) provides the pieces every experiment
+shares: pinhole cameras, the Shape-from-Silhouette occupancy grid of HEAPGrasp
+(eq. 9-10), TSDF fusion for the VGN baseline, ground-truth mesh silhouettes, exact
+view scoring (eq. 14), and 3-D smoothing / non-maximum suppression.
+
+Conventions (shared by every function):
+
+* Poses are ``(4, 4)`` float64 ``a2b`` matrices, e.g. ``cam2world``; camera axes are
+  OpenCV's (x right, y down, z forward).
+* A camera point ``(x, y, z)``, ``z > 0``, lands on pixel
+  ``(floor(fx*x/z + cx + 0.5), floor(fy*y/z + cy + 0.5))``; masks are ``(H, W)`` arrays
+  indexed ``[v, u]``.
+* A grid is a cube with minimum corner ``origin``, side ``size`` and ``resolution`` R;
+  voxel ``[a, b, c]`` has its centre at ``origin + (index + 0.5) * size / R``; volumes are
+  ``(R, R, R)`` C-order arrays indexed ``[x, y, z]``.
+"""
+
+from heapgrasp._core import (
+    HeapgraspError,
+    InvalidValueError,
+    MeshError,
+    MeshScene,
+    NonFiniteError,
+    NotRigidError,
+    OccupancyGrid,
+    PinholeCamera,
+    ShapeError,
+    TSDFVolume,
+    UnknownMeshError,
+    __version__,
+    gaussian_filter3d,
+    kernel_level,
+    maximum_filter3d,
+    nms3d,
+    num_threads,
+    score_views,
+)
+
+__all__ = [
+    "HeapgraspError",
+    "InvalidValueError",
+    "MeshError",
+    "MeshScene",
+    "NonFiniteError",
+    "NotRigidError",
+    "OccupancyGrid",
+    "PinholeCamera",
+    "ShapeError",
+    "TSDFVolume",
+    "UnknownMeshError",
+    "__version__",
+    "gaussian_filter3d",
+    "kernel_level",
+    "maximum_filter3d",
+    "nms3d",
+    "num_threads",
+    "score_views",
+]
