@@ -3,6 +3,7 @@
 use heapgrasp_core::PinholeCamera;
 use pyo3::prelude::*;
 
+use crate::convert::int_arg;
 use crate::errors::IntoPyResult;
 
 /// An ideal pinhole camera (no distortion); OpenCV axes, pixel centres at integers.
@@ -22,13 +23,18 @@ pub struct PyPinholeCamera {
 impl PyPinholeCamera {
     #[new]
     #[pyo3(signature = (width, height, fx, fy, cx, cy))]
-    fn new(width: i64, height: i64, fx: f64, fy: f64, cx: f64, cy: f64) -> PyResult<Self> {
-        let side = |name: &str, v: i64| -> PyResult<u32> {
-            u32::try_from(v).map_err(|_| {
-                crate::errors::InvalidValueError::new_err(format!(
-                    "{name}: must be between 1 and 16384 pixels (got {v})"
-                ))
-            })
+    fn new(
+        width: &Bound<'_, PyAny>,
+        height: &Bound<'_, PyAny>,
+        fx: f64,
+        fy: f64,
+        cx: f64,
+        cy: f64,
+    ) -> PyResult<Self> {
+        let side = |name: &str, v: &Bound<'_, PyAny>| -> PyResult<u32> {
+            let max = i64::from(heapgrasp_core::camera::MAX_IMAGE_SIDE);
+            let what = format!("must be between 1 and {max} pixels");
+            Ok(int_arg(v, name, 1, max, &what)? as u32)
         };
         let inner = PinholeCamera::new(
             side("width", width)?,

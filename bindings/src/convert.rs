@@ -160,3 +160,21 @@ where
 {
     py.detach(f).py()
 }
+
+/// An integer argument in `lo..=hi`; other ints (negative, huge) raise `InvalidValueError`
+/// naming the argument instead of pyo3's `OverflowError`.
+pub fn int_arg(obj: &Bound<'_, PyAny>, name: &str, lo: i64, hi: i64, what: &str) -> PyResult<i64> {
+    let bad = || {
+        crate::errors::InvalidValueError::new_err(format!(
+            "{name}: {what} (got {})",
+            obj.repr()
+                .map(|r| r.to_string())
+                .unwrap_or_else(|_| "?".into())
+        ))
+    };
+    let v: i64 = obj.extract().map_err(|_| bad())?;
+    if v < lo || v > hi {
+        return Err(bad());
+    }
+    Ok(v)
+}

@@ -4,7 +4,7 @@ use heapgrasp_core::{filter, nms};
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::prelude::*;
 
-use crate::convert::{array_arg, detached, ArrayArg};
+use crate::convert::{array_arg, detached, int_arg, ArrayArg};
 use crate::errors::ShapeError;
 use crate::occupancy::volume as to_volume;
 
@@ -18,6 +18,19 @@ fn cube<'py>(obj: &Bound<'py, PyAny>) -> PyResult<(ArrayArg<'py, f32>, usize)> {
         )));
     }
     Ok((v, r))
+}
+
+fn window_arg(window: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
+    match window {
+        None => Ok(4),
+        Some(w) => Ok(int_arg(
+            w,
+            "window",
+            1,
+            1 << 16,
+            "window must be between 1 and 65536 voxels",
+        )? as usize),
+    }
 }
 
 /// 3-D Gaussian smoothing, equal to scipy.ndimage.gaussian_filter(mode="nearest", truncate=4).
@@ -35,12 +48,13 @@ pub fn gaussian_filter3d<'py>(
 
 /// Sliding-window maximum over offsets [-(w/2), w-1-w/2] clipped to the grid.
 #[pyfunction]
-#[pyo3(signature = (volume, window = 4))]
+#[pyo3(signature = (volume, window = None))]
 pub fn maximum_filter3d<'py>(
     py: Python<'py>,
     volume: &Bound<'py, PyAny>,
-    window: usize,
+    window: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let window = window_arg(window)?;
     let (v, r) = cube(volume)?;
     let data = v.as_slice();
     let out = detached(py, move || nms::maximum_filter3d(data, r, window))?;
@@ -49,13 +63,14 @@ pub fn maximum_filter3d<'py>(
 
 /// Voxels >= threshold that equal their window maximum, as int64 (K, 3), best first.
 #[pyfunction]
-#[pyo3(signature = (volume, threshold, window = 4))]
+#[pyo3(signature = (volume, threshold, window = None))]
 pub fn nms3d<'py>(
     py: Python<'py>,
     volume: &Bound<'py, PyAny>,
     threshold: f64,
-    window: usize,
+    window: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyArray2<i64>>> {
+    let window = window_arg(window)?;
     let (v, r) = cube(volume)?;
     let data = v.as_slice();
     let threshold = threshold as f32;

@@ -6,7 +6,9 @@ use numpy::{PyArray1, PyArray3, PyArrayMethods};
 use pyo3::prelude::*;
 
 use crate::camera::PyPinholeCamera;
-use crate::convert::{array_arg, check_tail, detached, mask_arg, pose_arg, poses_arg, vec3_arg};
+use crate::convert::{
+    array_arg, check_tail, detached, int_arg, mask_arg, pose_arg, poses_arg, vec3_arg,
+};
 use crate::errors::{IntoPyResult, ShapeError};
 
 /// `(segmented, visible)` count volumes.
@@ -18,17 +20,21 @@ pub struct PyOccupancyGrid {
     pub inner: OccupancyGrid,
 }
 
+/// Voxels per axis when none is given (HEAPGrasp Table I).
+const DEFAULT_RESOLUTION: usize = 40;
+
 pub(crate) fn spec_args(
     origin: &Bound<'_, PyAny>,
     size: f64,
-    resolution: i64,
+    resolution: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<GridSpec> {
     let origin = vec3_arg(origin, "origin")?;
-    let r = usize::try_from(resolution).map_err(|_| {
-        crate::errors::InvalidValueError::new_err(format!(
-            "resolution: must be between 1 and 512 voxels per axis (got {resolution})"
-        ))
-    })?;
+    let max = heapgrasp_core::grid::MAX_RESOLUTION as i64;
+    let what = format!("must be between 1 and {max} voxels per axis");
+    let r = match resolution {
+        None => DEFAULT_RESOLUTION,
+        Some(obj) => int_arg(obj, "resolution", 1, max, &what)? as usize,
+    };
     GridSpec::new(origin, size, r).py()
 }
 
@@ -43,8 +49,12 @@ pub(crate) fn volume<'py, T: numpy::Element>(
 #[pymethods]
 impl PyOccupancyGrid {
     #[new]
-    #[pyo3(signature = (origin, size = 0.30, resolution = 40))]
-    fn new(origin: &Bound<'_, PyAny>, size: f64, resolution: i64) -> PyResult<Self> {
+    #[pyo3(signature = (origin, size = 0.30, resolution = None))]
+    fn new(
+        origin: &Bound<'_, PyAny>,
+        size: f64,
+        resolution: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
         Ok(Self {
             inner: OccupancyGrid::new(spec_args(origin, size, resolution)?),
         })
@@ -198,7 +208,7 @@ impl PyOccupancyGrid {
                 s.shape, v.shape
             )));
         }
-        let spec = spec_args(origin, size, r as i64)?;
+        let spec = GridSpec::new(vec3_arg(origin, "origin")?, size, r).py()?;
         Ok(Self {
             inner: OccupancyGrid::from_counts(spec, s.as_slice().to_vec(), v.as_slice().to_vec())
                 .py()?,

@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 
 use crate::camera::PyPinholeCamera;
 use crate::convert::{array_arg, check_tail, pose_arg, vec3_arg};
-use crate::errors::{IntoPyResult, MeshError};
+use crate::errors::{IntoPyResult, MeshError, UnknownMeshError};
 
 /// Rigid triangle meshes with world poses: ground-truth silhouettes, depth and labels.
 #[pyclass(name = "MeshScene", module = "heapgrasp._core")]
@@ -20,6 +20,16 @@ fn image<'py, T: numpy::Element>(
     data: Vec<T>,
 ) -> PyResult<Bound<'py, PyArray2<T>>> {
     PyArray1::from_vec(py, data).reshape([cam.inner.height as usize, cam.inner.width as usize])
+}
+
+fn id_arg(id: &Bound<'_, PyAny>) -> PyResult<u64> {
+    let v: i64 = id.extract().map_err(|_| {
+        UnknownMeshError::new_err(format!(
+            "unknown mesh id {}",
+            id.repr().map(|r| r.to_string()).unwrap_or_default()
+        ))
+    })?;
+    u64::try_from(v).map_err(|_| UnknownMeshError::new_err(format!("unknown mesh id {v}")))
 }
 
 #[pymethods]
@@ -81,21 +91,25 @@ impl PyMeshScene {
     }
 
     /// Moves mesh `id`.
-    fn set_pose(&mut self, id: u64, obj2world: &Bound<'_, PyAny>) -> PyResult<()> {
+    fn set_pose(&mut self, id: &Bound<'_, PyAny>, obj2world: &Bound<'_, PyAny>) -> PyResult<()> {
         let pose = pose_arg(obj2world, "obj2world")?;
-        self.inner.set_pose(id, pose).py()
+        self.inner.set_pose(id_arg(id)?, pose).py()
     }
 
     /// The (4, 4) obj2world pose of mesh `id`.
-    fn pose<'py>(&self, py: Python<'py>, id: u64) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let m = self.inner.pose(id).py()?.to_matrix();
+    fn pose<'py>(
+        &self,
+        py: Python<'py>,
+        id: &Bound<'_, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let m = self.inner.pose(id_arg(id)?).py()?.to_matrix();
         let flat: Vec<f64> = (0..16).map(|i| m[(i / 4, i % 4)]).collect();
         PyArray1::from_vec(py, flat).reshape([4, 4])
     }
 
     /// Removes mesh `id`.
-    fn remove(&mut self, id: u64) -> PyResult<()> {
-        self.inner.remove(id).py()
+    fn remove(&mut self, id: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.inner.remove(id_arg(id)?).py()
     }
 
     /// Ids of the meshes, ascending.
@@ -104,8 +118,8 @@ impl PyMeshScene {
     }
 
     /// Whether mesh `id` is closed and consistently oriented.
-    fn is_closed(&self, id: u64) -> PyResult<bool> {
-        self.inner.is_closed(id).py()
+    fn is_closed(&self, id: &Bound<'_, PyAny>) -> PyResult<bool> {
+        self.inner.is_closed(id_arg(id)?).py()
     }
 
     /// Total triangle count.

@@ -7,6 +7,7 @@ use pyo3::types::PyList;
 
 use crate::camera::PyPinholeCamera;
 use crate::convert::{detached, poses_arg};
+use crate::errors::ShapeError;
 use crate::occupancy::PyOccupancyGrid;
 use crate::raster::PyMeshScene;
 
@@ -23,7 +24,12 @@ pub fn score_views<'py>(
 ) -> PyResult<Bound<'py, PyArray1<f32>>> {
     let items: Vec<Bound<'py, PyAny>> = match trajectories.cast::<PyList>() {
         Ok(list) => list.iter().collect(),
-        Err(_) => trajectories.try_iter()?.collect::<PyResult<_>>()?,
+        Err(_) => trajectories
+            .try_iter()
+            .map_err(|_| {
+                ShapeError::new_err("trajectories: expected a sequence of (M, 4, 4) float64 arrays")
+            })?
+            .collect::<PyResult<_>>()?,
     };
     let trajs = items
         .iter()

@@ -18,11 +18,11 @@ pub struct PyTsdfVolume {
 #[pymethods]
 impl PyTsdfVolume {
     #[new]
-    #[pyo3(signature = (origin, size = 0.30, resolution = 40, truncation = 0.03))]
+    #[pyo3(signature = (origin, size = 0.30, resolution = None, truncation = 0.03))]
     fn new(
         origin: &Bound<'_, PyAny>,
         size: f64,
-        resolution: i64,
+        resolution: Option<&Bound<'_, PyAny>>,
         truncation: f64,
     ) -> PyResult<Self> {
         let spec = spec_args(origin, size, resolution)?;

@@ -421,39 +421,52 @@ fn rasterize_triangle<F>(
     }
     let s = det.signum();
     let (fx, fy, cx, cy) = (camera.fx, camera.fy, camera.cx, camera.cy);
-    // eᵢ(u, v) = αᵢ·u + βᵢ(v) with αᵢ = s·Aᵢ/fx, βᵢ(v) = s·(Bᵢ·y + Cᵢ) − αᵢ·cx, y = (v−cy)/fy.
-    let alpha = normals.map(|n| s * n.x / fx);
+    // eᵢ(u, v) = αᵢ·u + βᵢ(v) with αᵢ = s·Aᵢ/fx and βᵢ(v) = s·(Bᵢ·y + Cᵢ) − αᵢ·cx,
+    // y = (v − cy)/fy; so βᵢ(v) = β0ᵢ + v·βvᵢ. Each edge bounds the row's pixels at
+    // u = −βᵢ(v)/αᵢ = pᵢ + v·qᵢ. A shared edge has exactly negated (αᵢ, β0ᵢ, βvᵢ) in its two
+    // triangles, hence bit-identical pᵢ and qᵢ: no cracks, and pixel centres exactly on
+    // the edge go to both triangles.
+    let mut lower: [(f64, f64); 3] = [(f64::NEG_INFINITY, 0.0); 3];
+    let mut upper: [(f64, f64); 3] = [(f64::INFINITY, 0.0); 3];
+    let mut flat: [(f64, f64); 3] = [(0.0, 0.0); 3];
+    let (mut n_lo, mut n_hi, mut n_flat) = (0, 0, 0);
+    for n in &normals {
+        let a = s * n.x / fx;
+        let b_y = s * n.y / fy;
+        let b0 = s * n.z - b_y * cy - a * cx;
+        if a > 0.0 {
+            lower[n_lo] = (-b0 / a, -b_y / a);
+            n_lo += 1;
+        } else if a < 0.0 {
+            upper[n_hi] = (-b0 / a, -b_y / a);
+            n_hi += 1;
+        } else {
+            flat[n_flat] = (b0, b_y);
+            n_flat += 1;
+        }
+    }
     let mut tri = TriangleRow {
         id,
         det: s * det,
-        alpha_sum: 0.0,
+        alpha_sum: normals.iter().map(|n| s * n.x).sum(),
         beta_sum: 0.0,
     };
-    // For depth, Σeᵢ is expressed in x = (u − cx)/fx: Σ s(Aᵢ x + Bᵢ y + Cᵢ).
-    tri.alpha_sum = normals.iter().map(|n| s * n.x).sum();
-    let mut v = v_lo as i64;
-    while v <= v_hi as i64 {
-        let y = (v as f64 - cy) / fy;
-        let mut lo = u_lo_box;
-        let mut hi = u_hi_box;
-        let mut empty = false;
-        for k in 0..3 {
-            let n = normals[k];
-            let beta = s * (n.y * y + n.z) - alpha[k] * cx;
-            let a = alpha[k];
-            if a > 0.0 {
-                lo = lo.max((-beta / a).ceil());
-            } else if a < 0.0 {
-                hi = hi.min((-beta / a).floor());
-            } else if beta < 0.0 {
-                empty = true;
-            }
+    for v in (v_lo as i64)..=(v_hi as i64) {
+        let vf = v as f64;
+        if flat[..n_flat].iter().any(|&(b0, by)| b0 + vf * by < 0.0) {
+            continue;
         }
-        if !empty && lo <= hi {
+        let lo = lower[..n_lo]
+            .iter()
+            .fold(u_lo_box, |m, &(p, q)| m.max((p + vf * q).ceil()));
+        let hi = upper[..n_hi]
+            .iter()
+            .fold(u_hi_box, |m, &(p, q)| m.min((p + vf * q).floor()));
+        if lo <= hi {
+            let y = (vf - cy) / fy;
             tri.beta_sum = normals.iter().map(|n| s * (n.y * y + n.z)).sum();
             span(v as usize, lo as usize, hi as usize, &tri);
         }
-        v += 1;
     }
 }
 

@@ -1,0 +1,218 @@
+"""Type stubs of the native module ``heapgrasp._core`` (Rust, pyo3).
+
+Conventions: poses are ``(4, 4)`` float64 rigid ``a2b`` matrices (``cam2world``,
+``obj2world``) with OpenCV camera axes (x right, y down, z forward). A camera point
+``(x, y, z)``, ``z > 0``, lands on pixel ``(floor(fx*x/z + cx + 0.5), floor(fy*y/z + cy + 0.5))``;
+images and masks are ``(H, W)`` indexed ``[v, u]``. A grid is a cube (``origin`` = min
+corner, ``size``, ``resolution`` R); voxel ``[a, b, c]`` has its centre at
+``origin + (index + 0.5) * size / R``; volumes are ``(R, R, R)`` C-order ``[x, y, z]``.
+Arrays must be C-contiguous with the stated dtype; anything else raises ``ShapeError``.
+"""
+
+from collections.abc import Sequence
+from typing import final
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    "HeapgraspError",
+    "InvalidValueError",
+    "MeshError",
+    "MeshScene",
+    "NonFiniteError",
+    "NotRigidError",
+    "OccupancyGrid",
+    "PinholeCamera",
+    "ShapeError",
+    "TSDFVolume",
+    "UnknownMeshError",
+    "__version__",
+    "gaussian_filter3d",
+    "kernel_level",
+    "maximum_filter3d",
+    "nms3d",
+    "num_threads",
+    "score_views",
+]
+
+__version__: str
+
+class HeapgraspError(ValueError):
+    """Base class of every heapgrasp error."""
+
+class ShapeError(HeapgraspError):
+    """An array has the wrong shape, dtype or memory layout."""
+
+class InvalidValueError(HeapgraspError):
+    """A parameter is outside its valid range."""
+
+class NonFiniteError(HeapgraspError):
+    """An array holds NaN or infinity where finite values are required."""
+
+class NotRigidError(HeapgraspError):
+    """A 4x4 matrix that must be a rigid transform is not one."""
+
+class MeshError(HeapgraspError):
+    """A mesh cannot be used."""
+
+class UnknownMeshError(HeapgraspError):
+    """A mesh id that the scene does not hold."""
+
+_Mask2 = npt.NDArray[np.bool_] | npt.NDArray[np.uint8]
+_F64 = npt.NDArray[np.float64]
+_F32 = npt.NDArray[np.float32]
+_U32 = npt.NDArray[np.uint32]
+_Vec3 = Sequence[float] | npt.NDArray[np.floating]
+
+@final
+class PinholeCamera:
+    """Ideal pinhole camera (no distortion); pixel centres at integer coordinates."""
+
+    def __new__(
+        cls, width: int, height: int, fx: float, fy: float, cx: float, cy: float
+    ) -> PinholeCamera: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def fx(self) -> float: ...
+    @property
+    def fy(self) -> float: ...
+    @property
+    def cx(self) -> float: ...
+    @property
+    def cy(self) -> float: ...
+    def __eq__(self, other: object, /) -> bool: ...
+    def __getnewargs__(self) -> tuple[int, int, float, float, float, float]: ...
+
+@final
+class OccupancyGrid:
+    """Shape-from-Silhouette counts on a cube (HEAPGrasp eq. 9-10)."""
+
+    def __new__(
+        cls, origin: _Vec3, size: float = 0.30, resolution: int | None = None
+    ) -> OccupancyGrid:
+        """``resolution=None`` means 40 voxels per axis (HEAPGrasp Table I)."""
+    @property
+    def origin(self) -> tuple[float, float, float]: ...
+    @property
+    def size(self) -> float: ...
+    @property
+    def resolution(self) -> int: ...
+    @property
+    def voxel_size(self) -> float: ...
+    def integrate(self, mask: _Mask2, camera: PinholeCamera, cam2world: _F64) -> None:
+        """Add one silhouette: ``mask`` bool/uint8 ``(H, W)``, nonzero = object."""
+    def integrate_many(self, masks: _Mask2, camera: PinholeCamera, cam2worlds: _F64) -> None:
+        """Add N silhouettes ``(N, H, W)`` seen from ``(N, 4, 4)`` poses; all-or-nothing."""
+    def counts(self) -> tuple[_U32, _U32]:
+        """``(segmented, visible)`` uint32 ``(R, R, R)`` copies."""
+    def occupancy(self) -> _F32:
+        """``segmented / visible`` where ``visible > 0`` else 0 (eq. 10), float32."""
+    def high_confidence(self, lam: float = 0.9) -> _F32:
+        """Occupancy with values below ``lam`` set to 0."""
+    def count_high_confidence(self, lam: float = 0.9) -> int:
+        """Number of non-zero voxels of :meth:`high_confidence`."""
+    def reset(self) -> None: ...
+    def copy(self) -> OccupancyGrid: ...
+    def __copy__(self) -> OccupancyGrid: ...
+    def __deepcopy__(self, memo: object) -> OccupancyGrid: ...
+    @staticmethod
+    def from_counts(origin: _Vec3, size: float, segmented: _U32, visible: _U32) -> OccupancyGrid:
+        """A grid with given uint32 ``(R, R, R)`` counts (``segmented <= visible``)."""
+
+@final
+class TSDFVolume:
+    """Truncated signed distance fusion of depth images (the VGN baseline's input).
+
+    Per voxel centre visible in a frame with valid depth ``d`` (finite, > 0):
+    ``sdf = d - z``; skipped if ``sdf < -truncation``; observation
+    ``min(1, sdf / truncation)`` averaged with weight 1. Unobserved voxels are 0 with
+    weight 0.
+    """
+
+    def __new__(
+        cls,
+        origin: _Vec3,
+        size: float = 0.30,
+        resolution: int | None = None,
+        truncation: float = 0.03,
+    ) -> TSDFVolume:
+        """``resolution=None`` means 40 voxels per axis."""
+    @property
+    def origin(self) -> tuple[float, float, float]: ...
+    @property
+    def size(self) -> float: ...
+    @property
+    def resolution(self) -> int: ...
+    @property
+    def truncation(self) -> float: ...
+    def integrate(self, depth_m: _F32, camera: PinholeCamera, cam2world: _F64) -> None:
+        """Fuse a float32 ``(H, W)`` depth image in metres (0 or NaN = missing)."""
+    def values(self) -> _F32: ...
+    def weights(self) -> _F32: ...
+    def reset(self) -> None: ...
+    def copy(self) -> TSDFVolume: ...
+
+@final
+class MeshScene:
+    """Rigid triangle meshes: exact silhouettes, depth and labels (ray through pixel centre)."""
+
+    def __new__(cls) -> MeshScene: ...
+    def add_mesh(
+        self,
+        vertices: _F64,
+        faces: npt.NDArray[np.int64] | npt.NDArray[np.int32] | npt.NDArray[np.uint32],
+        obj2world: _F64,
+    ) -> int:
+        """Add ``(V, 3)`` object-frame vertices and ``(F, 3)`` faces; returns the id (>= 1)."""
+    def set_pose(self, id: int, obj2world: _F64) -> None: ...
+    def pose(self, id: int) -> _F64: ...
+    def remove(self, id: int) -> None: ...
+    def ids(self) -> list[int]: ...
+    def is_closed(self, id: int) -> bool: ...
+    @property
+    def triangle_count(self) -> int: ...
+    def __len__(self) -> int: ...
+    def render_mask(self, camera: PinholeCamera, cam2world: _F64) -> npt.NDArray[np.bool_]:
+        """bool ``(H, W)``: True where the pixel-centre ray hits a mesh."""
+    def render_depth(self, camera: PinholeCamera, cam2world: _F64) -> _F32:
+        """float32 ``(H, W)``: camera z of the nearest hit in metres, 0 where none."""
+    def render_labels(self, camera: PinholeCamera, cam2world: _F64) -> _U32:
+        """uint32 ``(H, W)``: id of the nearest mesh, 0 where none."""
+    def cast_ray(self, origin: _Vec3, direction: _Vec3) -> tuple[float, int] | None:
+        """First hit of a world-frame ray: ``(distance, id)`` or None."""
+
+def score_views(
+    grid: OccupancyGrid,
+    scene: MeshScene,
+    camera: PinholeCamera,
+    trajectories: Sequence[_F64],
+    lam: float = 0.9,
+) -> _F32:
+    """Exact eq. 14 score of each candidate trajectory (``(M_k, 4, 4)`` poses), float32 (K,).
+
+    ``1 - #high-confidence after / #high-confidence before`` (float32 arithmetic),
+    rendering the hypothetical masks from ``scene``. All zeros when the grid has no
+    high-confidence voxel. Scores can be negative: voxels never seen before can become
+    high-confidence when a new view segments them.
+    """
+
+def gaussian_filter3d(volume: _F32, sigma: float) -> _F32:
+    """Equal to ``scipy.ndimage.gaussian_filter(volume, sigma, mode="nearest", truncate=4)``."""
+
+def maximum_filter3d(volume: _F32, window: int | None = None) -> _F32:
+    """Max over offsets ``[-(w//2), w-1-w//2]`` per axis, clipped (``window=None``: 4)."""
+
+def nms3d(
+    volume: _F32, threshold: float, window: int | None = None
+) -> npt.NDArray[np.int64]:
+    """Voxels ``>= threshold`` equal to their window max, ``(K, 3)``, best first."""
+
+def kernel_level() -> str:
+    """``"avx512"``, ``"avx2"`` or ``"baseline"``: the carving kernel build in use."""
+
+def num_threads() -> int:
+    """Threads used by the kernels (``HEAPGRASP_NUM_THREADS`` or the CPU count)."""
