@@ -1,0 +1,46 @@
+"""Benchmarks behind ``heapgrasp bench``.
+
+Each benchmark is a module with an ``add_parser(subparsers)`` function that registers
+its subcommand (and sets ``func``, the function that runs it, as a parser default):
+
+* :mod:`heapgrasp.bench.carve` -- ``heapgrasp bench carve``: Shape-from-Silhouette
+  carving, the Rust kernel against NumPy, numba and Open3D.
+
+Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from heapgrasp.bench import carve
+
+__all__ = ["add_parser"]
+
+
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
+    """Adds the ``bench`` command group and its benchmarks to a CLI.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The top-level subparsers of ``heapgrasp``.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The ``bench`` parser; further benchmarks (``bench score``, ...) register on its
+        subparsers the way :func:`heapgrasp.bench.carve.add_parser` does.
+    """
+    p = subparsers.add_parser(
+        "bench",
+        help="performance benchmarks of the Rust core against Python baselines",
+        description="Performance benchmarks of the Rust core against Python baselines.",
+    )
+    benches = p.add_subparsers(
+        dest="benchmark", metavar="BENCHMARK", title="benchmarks", required=True
+    )
+    carve.add_parser(benches)
+    return p
