@@ -22,6 +22,38 @@ fn image<'py, T: numpy::Element>(
     PyArray1::from_vec(py, data).reshape([cam.inner.height as usize, cam.inner.width as usize])
 }
 
+/// Face indices as u32 from an int64, int32 or uint32 `(F, 3)` array.
+fn faces_arg(faces: &Bound<'_, PyAny>) -> PyResult<Vec<u32>> {
+    fn convert<T: Copy + std::fmt::Display>(
+        data: &[T],
+        to: impl Fn(T) -> Option<u32>,
+    ) -> PyResult<Vec<u32>> {
+        data.iter()
+            .enumerate()
+            .map(|(i, &x)| {
+                to(x).ok_or_else(|| {
+                    MeshError::new_err(format!(
+                        "faces: invalid mesh: faces[{}, {}] = {x} is not a vertex index",
+                        i / 3,
+                        i % 3
+                    ))
+                })
+            })
+            .collect()
+    }
+    if let Ok(f) = array_arg::<i64>(faces, "faces", "int64", Some(2)) {
+        check_tail("faces", &f.shape, &[3], "(F, 3)")?;
+        return convert(f.as_slice(), |x| u32::try_from(x).ok());
+    }
+    if let Ok(f) = array_arg::<i32>(faces, "faces", "int32", Some(2)) {
+        check_tail("faces", &f.shape, &[3], "(F, 3)")?;
+        return convert(f.as_slice(), |x| u32::try_from(x).ok());
+    }
+    let f = array_arg::<u32>(faces, "faces", "int64, int32 or uint32", Some(2))?;
+    check_tail("faces", &f.shape, &[3], "(F, 3)")?;
+    Ok(f.as_slice().to_vec())
+}
+
 fn id_arg(id: &Bound<'_, PyAny>) -> PyResult<u64> {
     let v: i64 = id.extract().map_err(|_| {
         UnknownMeshError::new_err(format!(
@@ -50,42 +82,7 @@ impl PyMeshScene {
     ) -> PyResult<u64> {
         let v = array_arg::<f64>(vertices, "vertices", "float64", Some(2))?;
         check_tail("vertices", &v.shape, &[3], "(V, 3)")?;
-        let faces_u32: Vec<u32> = if let Ok(f) = array_arg::<i64>(faces, "faces", "int64", Some(2))
-        {
-            check_tail("faces", &f.shape, &[3], "(F, 3)")?;
-            f.as_slice()
-                .iter()
-                .enumerate()
-                .map(|(i, &x)| {
-                    u32::try_from(x).map_err(|_| {
-                        MeshError::new_err(format!(
-                            "faces: invalid mesh: faces[{}, {}] = {x} is not a vertex index",
-                            i / 3,
-                            i % 3
-                        ))
-                    })
-                })
-                .collect::<PyResult<_>>()?
-        } else if let Ok(f) = array_arg::<i32>(faces, "faces", "int32", Some(2)) {
-            check_tail("faces", &f.shape, &[3], "(F, 3)")?;
-            f.as_slice()
-                .iter()
-                .enumerate()
-                .map(|(i, &x)| {
-                    u32::try_from(x).map_err(|_| {
-                        MeshError::new_err(format!(
-                            "faces: invalid mesh: faces[{}, {}] = {x} is not a vertex index",
-                            i / 3,
-                            i % 3
-                        ))
-                    })
-                })
-                .collect::<PyResult<_>>()?
-        } else {
-            let f = array_arg::<u32>(faces, "faces", "int64, int32 or uint32", Some(2))?;
-            check_tail("faces", &f.shape, &[3], "(F, 3)")?;
-            f.as_slice().to_vec()
-        };
+        let faces_u32 = faces_arg(faces)?;
         let pose = pose_arg(obj2world, "obj2world")?;
         self.inner.add_mesh(v.as_slice(), &faces_u32, pose).py()
     }

@@ -30,6 +30,7 @@ pub mod grid;
 pub mod nms;
 pub mod occupancy;
 pub mod parallel;
+pub mod primitives;
 pub mod projector;
 pub mod raster;
 pub mod score;

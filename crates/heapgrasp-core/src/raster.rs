@@ -604,23 +604,7 @@ pub(crate) mod tests {
 
     /// Axis-aligned box centred at the origin, outward CCW faces.
     pub(crate) fn box_mesh(hx: f64, hy: f64, hz: f64) -> (Vec<f64>, Vec<u32>) {
-        let mut v = Vec::new();
-        for i in 0..8 {
-            v.extend([
-                if i & 1 == 0 { -hx } else { hx },
-                if i & 2 == 0 { -hy } else { hy },
-                if i & 4 == 0 { -hz } else { hz },
-            ]);
-        }
-        let f = vec![
-            0, 2, 1, 1, 2, 3, // z-
-            4, 5, 6, 5, 7, 6, // z+
-            0, 1, 4, 1, 5, 4, // y-
-            2, 6, 3, 3, 6, 7, // y+
-            0, 4, 2, 2, 4, 6, // x-
-            1, 3, 5, 3, 7, 5, // x+
-        ];
-        (v, f)
+        crate::primitives::box_mesh([hx, hy, hz])
     }
 
     fn translation(x: f64, y: f64, z: f64) -> Pose {
