@@ -94,6 +94,18 @@ pub(crate) fn carve(
     Ok(())
 }
 
+/// Adds one prepared frame over the whole grid, single-threaded (callers parallelise
+/// over something else, e.g. view candidates).
+pub(crate) fn carve_one(grid: &GridSpec, frame: &PreparedFrame, seg: &mut [u32], vis: &mut [u32]) {
+    carve_slab(
+        grid,
+        0..grid.resolution(),
+        std::slice::from_ref(frame),
+        seg,
+        vis,
+    );
+}
+
 /// Carves the x-slab `rows` of the grid; `seg` and `vis` hold exactly those rows.
 fn carve_slab(
     grid: &GridSpec,

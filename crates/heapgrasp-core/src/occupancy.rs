@@ -28,6 +28,49 @@ pub fn is_high_confidence(segmented: u32, visible: u32, lam: f32) -> bool {
     segmented > 0 && occupancy_value(segmented, visible) >= lam
 }
 
+/// [`is_high_confidence`] as a table lookup: `thresholds[v]` is the smallest `s` with
+/// `f32(s) / f32(v) >= λ` (or `u32::MAX` when none), built from the very same f32
+/// division, so `s > 0 && s >= thresholds[v]` is exactly the same predicate without a
+/// division per voxel.
+#[derive(Debug, Clone)]
+pub struct HighConfidenceTable {
+    thresholds: Vec<u32>,
+}
+
+impl HighConfidenceTable {
+    /// A table for visible counts `0..=max_visible` at threshold `lam`.
+    pub fn new(lam: f32, max_visible: u32) -> Self {
+        let thresholds = (0..=max_visible)
+            .map(|v| {
+                if v == 0 {
+                    return u32::MAX;
+                }
+                // The predicate is monotone in s: start near λ·v and step to the edge.
+                let mut s = ((lam as f64) * v as f64).floor().clamp(0.0, v as f64) as u32;
+                while s > 0 && occupancy_value(s - 1, v) >= lam {
+                    s -= 1;
+                }
+                while s <= v && occupancy_value(s, v) < lam {
+                    s += 1;
+                }
+                if s > v {
+                    u32::MAX
+                } else {
+                    s
+                }
+            })
+            .collect();
+        Self { thresholds }
+    }
+
+    /// Whether counts `(s, v)` are high-confidence; `v` must not exceed the table's range.
+    #[inline(always)]
+    pub fn contains(&self, s: u32, v: u32) -> bool {
+        debug_assert!((v as usize) < self.thresholds.len());
+        s > 0 && s >= self.thresholds[v as usize]
+    }
+}
+
 /// Validates a confidence threshold λ ∈ [0, 1] and returns it in f32.
 ///
 /// # Errors
@@ -248,6 +291,22 @@ mod tests {
             Err(Error::Shape { .. })
         ));
         assert!(occ.visible().iter().all(|&v| v == 0));
+    }
+
+    #[test]
+    fn threshold_table_equals_the_division() {
+        for lam in [0.0f32, 0.1, 0.5, 0.9, 0.95, 0.999, 1.0, 1.0 / 3.0] {
+            let t = HighConfidenceTable::new(lam, 300);
+            for v in 0..=300 {
+                for s in 0..=v {
+                    assert_eq!(
+                        t.contains(s, v),
+                        is_high_confidence(s, v, lam),
+                        "lam {lam} s {s} v {v}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

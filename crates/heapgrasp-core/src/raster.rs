@@ -180,7 +180,7 @@ impl MeshScene {
     /// The silhouette mask, `(height, width)` row-major, 1 where a ray hits a mesh.
     pub fn render_mask(&self, camera: &PinholeCamera, cam2world: &Pose) -> Vec<u8> {
         let mut out = vec![0u8; camera.pixel_count()];
-        let mut scratch = Vec::new();
+        let mut scratch = RasterScratch::default();
         self.render_mask_into(
             camera,
             cam2world,
@@ -200,7 +200,7 @@ impl MeshScene {
         cam2world: &Pose,
         rect: PixelRect,
         out: &mut [u8],
-        scratch: &mut Vec<[f64; 3]>,
+        scratch: &mut RasterScratch,
     ) {
         let w = camera.width as usize;
         for v in rect.v0..=rect.v1 {
@@ -223,18 +223,19 @@ impl MeshScene {
         let w = camera.width as usize;
         let mut depth = vec![f64::INFINITY; n];
         let mut labels = vec![0u32; n];
-        let mut scratch = Vec::new();
-        let (fx, cx) = (camera.fx, camera.cx);
+        let mut scratch = RasterScratch::default();
+        let (fx, fy, cx, cy) = (camera.fx, camera.fy, camera.cx, camera.cy);
         self.rasterize(
             camera,
             cam2world,
             PixelRect::full(camera),
             &mut scratch,
             |row, u0, u1, tri| {
+                let y = (row as f64 - cy) / fy;
+                let beta = tri.beta0 + tri.beta_y * y;
                 for u in u0..=u1 {
                     let x = (u as f64 - cx) / fx;
-                    let sum = tri.alpha_sum * x + tri.beta_sum;
-                    let z = tri.det / sum;
+                    let z = tri.det / (tri.alpha_sum * x + beta);
                     let i = row * w + u;
                     if z > 0.0 && z < depth[i] {
                         depth[i] = z;
@@ -307,13 +308,14 @@ impl MeshScene {
         camera: &PinholeCamera,
         cam2world: &Pose,
         rect: PixelRect,
-        scratch: &mut Vec<[f64; 3]>,
+        scratch: &mut RasterScratch,
         mut span: F,
     ) where
         F: FnMut(usize, usize, usize, &TriangleRow),
     {
         let world2cam = cam2world.inverse();
         let cam_center_world = Point3::from(*cam2world.translation());
+        let (fx, fy, cx, cy) = (camera.fx, camera.fy, camera.cx, camera.cy);
         for (&id, mesh) in &self.meshes {
             let o2c = world2cam.compose(&mesh.obj2world);
             // Object-level culling against the bounding sphere.
@@ -325,13 +327,53 @@ impl MeshScene {
             let cull = mesh.orientation != 0.0
                 && (mesh.obj2world.transform_point(&mesh.sphere_center) - cam_center_world).norm()
                     > r;
-            scratch.clear();
-            scratch.extend(mesh.vertices.iter().map(|p| {
+            // Each vertex is transformed and projected once per frame; a vertex behind the
+            // camera gets NaN image coordinates, which disables the box test below.
+            scratch.cam.clear();
+            scratch.uv.clear();
+            for p in &mesh.vertices {
                 let q = o2c.transform_point(&Point3::from(*p));
-                [q.x, q.y, q.z]
-            }));
+                scratch.cam.push([q.x, q.y, q.z]);
+                scratch.uv.push(if q.z > 0.0 {
+                    let iz = 1.0 / q.z;
+                    [fx * q.x * iz + cx, fy * q.y * iz + cy]
+                } else {
+                    [f64::NAN, f64::NAN]
+                });
+            }
             for f in &mesh.faces {
-                let [a, b, c] = f.map(|i| Vector3::from(scratch[i as usize]));
+                let [i0, i1, i2] = f.map(|i| i as usize);
+                let mut bounds = (
+                    rect.u0 as f64,
+                    rect.u1 as f64,
+                    rect.v0 as f64,
+                    rect.v1 as f64,
+                );
+                let (p0, p1, p2) = (scratch.uv[i0], scratch.uv[i1], scratch.uv[i2]);
+                if !(p0[0].is_nan() || p1[0].is_nan() || p2[0].is_nan()) {
+                    // The pixel centres a triangle can cover lie in the box of its
+                    // projected vertices; BOX_SLACK px guards against rounding, and the
+                    // exact decision is the edge functions'.
+                    let umin = p0[0].min(p1[0]).min(p2[0]) - BOX_SLACK;
+                    let umax = p0[0].max(p1[0]).max(p2[0]) + BOX_SLACK;
+                    let vmin = p0[1].min(p1[1]).min(p2[1]) - BOX_SLACK;
+                    let vmax = p0[1].max(p1[1]).max(p2[1]) + BOX_SLACK;
+                    bounds = (
+                        bounds.0.max(ceil_fast(umin)),
+                        bounds.1.min(floor_fast(umax)),
+                        bounds.2.max(ceil_fast(vmin)),
+                        bounds.3.min(floor_fast(vmax)),
+                    );
+                    if bounds.0 > bounds.1 || bounds.2 > bounds.3 {
+                        continue;
+                    }
+                } else if scratch.cam[i0][2] <= 0.0
+                    && scratch.cam[i1][2] <= 0.0
+                    && scratch.cam[i2][2] <= 0.0
+                {
+                    continue; // wholly behind the camera: no forward ray reaches it
+                }
+                let [a, b, c] = [i0, i1, i2].map(|i| Vector3::from(scratch.cam[i]));
                 let n0 = b.cross(&c);
                 let det = a.dot(&n0);
                 if det == 0.0 || (cull && det * mesh.orientation > 0.0) {
@@ -339,9 +381,8 @@ impl MeshScene {
                 }
                 rasterize_triangle(
                     camera,
-                    rect,
+                    bounds,
                     id,
-                    [a, b, c],
                     [n0, c.cross(&a), a.cross(&b)],
                     det,
                     &mut span,
@@ -351,13 +392,49 @@ impl MeshScene {
     }
 }
 
-/// Per-triangle data handed to span callbacks (for depth: `z = det / (alpha_sum·x + beta_sum)`
-/// with `x = (u - cx) / fx`, on the current row).
+/// Slack (pixels) of the projected-vertex box test.
+const BOX_SLACK: f64 = 1e-6;
+
+/// `floor(x)` without libm: the baseline x86-64 target has no `roundsd`, and `f64::floor`
+/// is a function call there. Exact for |x| < 2^53; beyond ±2^63 it saturates, which the
+/// callers' clamping to the image makes harmless.
+#[inline(always)]
+fn floor_fast(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    if t > x {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
+/// `ceil(x)`; see [`floor_fast`].
+#[inline(always)]
+fn ceil_fast(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    if t < x {
+        t + 1.0
+    } else {
+        t
+    }
+}
+
+/// Reusable per-frame buffers of the rasteriser (camera-frame vertices and their
+/// projections), so rendering many frames allocates nothing.
+#[derive(Debug, Default, Clone)]
+pub struct RasterScratch {
+    cam: Vec<[f64; 3]>,
+    uv: Vec<[f64; 2]>,
+}
+
+/// Per-triangle data handed to span callbacks: on pixel `(u, v)` the hit depth is
+/// `det / (alpha_sum·x + beta0 + beta_y·y)` with `x = (u − cx)/fx`, `y = (v − cy)/fy`.
 pub(crate) struct TriangleRow {
     id: u64,
     det: f64,
     alpha_sum: f64,
-    beta_sum: f64,
+    beta0: f64,
+    beta_y: f64,
 }
 
 /// Whether a camera-frame sphere can cover a pixel centre of `rect` (conservative).
@@ -381,75 +458,56 @@ fn sphere_may_touch(camera: &PinholeCamera, c: &Point3<f64>, r: f64, rect: Pixel
         && v_lo <= rect.v1 as f64 + 1.0
 }
 
+/// Emits the covered pixel runs of one triangle inside `bounds` (columns u0..=u1, rows
+/// v0..=v1, as f64), given its edge normals `V1×V2, V2×V0, V0×V1` and `det = V0·(V1×V2)`.
 #[inline]
 fn rasterize_triangle<F>(
     camera: &PinholeCamera,
-    rect: PixelRect,
+    bounds: (f64, f64, f64, f64),
     id: u64,
-    verts: [Vector3<f64>; 3],
     normals: [Vector3<f64>; 3],
     det: f64,
     span: &mut F,
 ) where
     F: FnMut(usize, usize, usize, &TriangleRow),
 {
-    // Row range: the projected bounding box when all vertices are in front, else all rows.
-    let (mut v_lo, mut v_hi) = (rect.v0 as f64, rect.v1 as f64);
-    let (mut u_lo_box, mut u_hi_box) = (rect.u0 as f64, rect.u1 as f64);
-    if verts.iter().all(|p| p.z <= 0.0) {
-        return;
-    }
-    if verts.iter().all(|p| p.z > 0.0) {
-        let us = verts.map(|p| camera.fx * p.x / p.z + camera.cx);
-        let vs = verts.map(|p| camera.fy * p.y / p.z + camera.cy);
-        let (umin, umax) = (
-            us.iter().copied().fold(f64::INFINITY, f64::min),
-            us.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        );
-        let (vmin, vmax) = (
-            vs.iter().copied().fold(f64::INFINITY, f64::min),
-            vs.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        );
-        // One pixel of slack: the exact decision is made by the edge functions below.
-        v_lo = v_lo.max((vmin - 1.0).ceil());
-        v_hi = v_hi.min((vmax + 1.0).floor());
-        u_lo_box = u_lo_box.max((umin - 1.0).ceil());
-        u_hi_box = u_hi_box.min((umax + 1.0).floor());
-        if v_lo > v_hi || u_lo_box > u_hi_box {
-            return;
-        }
-    }
+    let (u_lo_box, u_hi_box, v_lo, v_hi) = bounds;
     let s = det.signum();
-    let (fx, fy, cx, cy) = (camera.fx, camera.fy, camera.cx, camera.cy);
+    let (inv_fx, inv_fy, cx, cy) = (1.0 / camera.fx, 1.0 / camera.fy, camera.cx, camera.cy);
     // eᵢ(u, v) = αᵢ·u + βᵢ(v) with αᵢ = s·Aᵢ/fx and βᵢ(v) = s·(Bᵢ·y + Cᵢ) − αᵢ·cx,
     // y = (v − cy)/fy; so βᵢ(v) = β0ᵢ + v·βvᵢ. Each edge bounds the row's pixels at
     // u = −βᵢ(v)/αᵢ = pᵢ + v·qᵢ. A shared edge has exactly negated (αᵢ, β0ᵢ, βvᵢ) in its two
-    // triangles, hence bit-identical pᵢ and qᵢ: no cracks, and pixel centres exactly on
-    // the edge go to both triangles.
+    // triangles (negation commutes with every rounding used here), hence bit-identical
+    // pᵢ and qᵢ: no cracks, and pixel centres exactly on the edge go to both triangles.
     let mut lower: [(f64, f64); 3] = [(f64::NEG_INFINITY, 0.0); 3];
     let mut upper: [(f64, f64); 3] = [(f64::INFINITY, 0.0); 3];
     let mut flat: [(f64, f64); 3] = [(0.0, 0.0); 3];
     let (mut n_lo, mut n_hi, mut n_flat) = (0, 0, 0);
     for n in &normals {
-        let a = s * n.x / fx;
-        let b_y = s * n.y / fy;
+        let a = s * n.x * inv_fx;
+        let b_y = s * n.y * inv_fy;
         let b0 = s * n.z - b_y * cy - a * cx;
-        if a > 0.0 {
-            lower[n_lo] = (-b0 / a, -b_y / a);
-            n_lo += 1;
-        } else if a < 0.0 {
-            upper[n_hi] = (-b0 / a, -b_y / a);
-            n_hi += 1;
-        } else {
+        if a == 0.0 {
             flat[n_flat] = (b0, b_y);
             n_flat += 1;
+            continue;
+        }
+        let inv_a = 1.0 / a;
+        let line = (-b0 * inv_a, -b_y * inv_a);
+        if a > 0.0 {
+            lower[n_lo] = line;
+            n_lo += 1;
+        } else {
+            upper[n_hi] = line;
+            n_hi += 1;
         }
     }
-    let mut tri = TriangleRow {
+    let tri = TriangleRow {
         id,
         det: s * det,
         alpha_sum: normals.iter().map(|n| s * n.x).sum(),
-        beta_sum: 0.0,
+        beta0: normals.iter().map(|n| s * n.z).sum(),
+        beta_y: normals.iter().map(|n| s * n.y).sum(),
     };
     for v in (v_lo as i64)..=(v_hi as i64) {
         let vf = v as f64;
@@ -458,13 +516,11 @@ fn rasterize_triangle<F>(
         }
         let lo = lower[..n_lo]
             .iter()
-            .fold(u_lo_box, |m, &(p, q)| m.max((p + vf * q).ceil()));
+            .fold(u_lo_box, |m, &(p, q)| m.max(ceil_fast(p + vf * q)));
         let hi = upper[..n_hi]
             .iter()
-            .fold(u_hi_box, |m, &(p, q)| m.min((p + vf * q).floor()));
+            .fold(u_hi_box, |m, &(p, q)| m.min(floor_fast(p + vf * q)));
         if lo <= hi {
-            let y = (vf - cy) / fy;
-            tri.beta_sum = normals.iter().map(|n| s * (n.y * y + n.z)).sum();
             span(v as usize, lo as usize, hi as usize, &tri);
         }
     }
@@ -722,7 +778,13 @@ pub(crate) mod tests {
             v1: 30,
         };
         let mut out = vec![7u8; cam.pixel_count()];
-        s.render_mask_into(&cam, &cam2world, rect, &mut out, &mut Vec::new());
+        s.render_mask_into(
+            &cam,
+            &cam2world,
+            rect,
+            &mut out,
+            &mut RasterScratch::default(),
+        );
         for v in 0..cam.height {
             for u in 0..cam.width {
                 let i = (v * cam.width + u) as usize;

@@ -11,12 +11,16 @@
 //! - A voxel with counts `(s, v)` can end high-confidence after `M` more frames only if
 //!   `(s + M) / (v + M) >= λ` (occupancy can at best rise to that), so only those voxels
 //!   are tracked; every other voxel contributes 0 to the "after" count.
-//! - Frames are processed from the far end of the trajectory (the candidate view, the
-//!   most informative) backwards; after each frame a voxel that can no longer reach λ
-//!   even if all remaining frames segment it is dropped. Empty space seen as background
-//!   leaves after one or two frames, so most frames touch only voxels near the objects.
-//! - Each frame's silhouette is rasterised only inside the bounding box of the pixels the
-//!   surviving voxels project to ([`MeshScene::render_mask_into`]).
+//! - The far end of the trajectory (the candidate view, the most informative frame) is
+//!   carved first, densely over the whole grid with the SIMD kernel of [`crate::carve`].
+//!   A voxel that can then no longer reach λ, even if every remaining frame segments it,
+//!   is dropped; the `(s, v) -> high-confidence` test is a table lookup
+//!   ([`HighConfidenceTable`]) rather than a division.
+//! - If more than a quarter of the grid is still undecided (typically voxels no view has
+//!   seen yet, which only a frame that sees them can decide), the remaining frames are
+//!   carved densely too. Otherwise each remaining frame visits only the surviving
+//!   voxels, drops the ones that can no longer reach λ, and rasterises its silhouette
+//!   only inside the bounding box of their pixels ([`MeshScene::render_mask_into`]).
 //!
 //! Candidates run in parallel (`std::thread::scope`). Voxel centres are projected with
 //! the f32 kernel of [`crate::projector`], so results equal integrating the rendered
@@ -24,21 +28,22 @@
 //! pixel border.
 
 use crate::camera::{PinholeCamera, Pose};
+use crate::carve::{carve_one, PreparedFrame};
 use crate::error::{Error, Result};
-use crate::occupancy::{is_high_confidence, OccupancyGrid};
+use crate::occupancy::{HighConfidenceTable, OccupancyGrid};
 use crate::parallel;
 use crate::projector::VoxelProjector;
-use crate::raster::{MeshScene, PixelRect};
+use crate::raster::{MeshScene, PixelRect, RasterScratch};
 
 /// Largest accepted trajectory length (frames per candidate): counts are kept in u16.
 pub const MAX_TRAJECTORY_FRAMES: usize = 4096;
 
-/// A tracked voxel: grid index (as f32 for the projection) and current counts.
-#[derive(Clone, Copy)]
+/// The voxels that can still end high-confidence, with their grid index and counts.
 struct Tracked {
-    abc: [f32; 3],
-    seg: u32,
-    vis: u32,
+    flat: Vec<u32>,
+    abc: Vec<[f32; 3]>,
+    seg: Vec<u32>,
+    vis: Vec<u32>,
 }
 
 /// Scores every candidate trajectory by eq. 14 (see the module docs).
@@ -68,30 +73,32 @@ pub fn score_views(
         return Ok(vec![0.0; trajectories.len()]);
     }
     let max_m = trajectories.iter().map(Vec::len).max().unwrap_or(0) as u32;
+    let max_v = grid.visible().iter().copied().max().unwrap_or(0);
+    let table = HighConfidenceTable::new(lam, max_v + max_m);
     let spec = grid.spec();
-    let tracked: Vec<Tracked> = grid
-        .segmented()
-        .iter()
-        .zip(grid.visible())
-        .enumerate()
-        .filter(|(_, (&s, &v))| is_high_confidence(s + max_m, v + max_m, lam))
-        .map(|(i, (&s, &v))| {
+    let mut tracked = Tracked {
+        flat: Vec::new(),
+        abc: Vec::new(),
+        seg: Vec::new(),
+        vis: Vec::new(),
+    };
+    for (i, (&s, &v)) in grid.segmented().iter().zip(grid.visible()).enumerate() {
+        if table.contains(s + max_m, v + max_m) {
             let [a, b, c] = spec.unflatten(i);
-            Tracked {
-                abc: [a as f32, b as f32, c as f32],
-                seg: s,
-                vis: v,
-            }
-        })
-        .collect();
-    let work: usize = trajectories.iter().map(Vec::len).sum::<usize>() * tracked.len().max(1);
+            tracked.flat.push(i as u32);
+            tracked.abc.push([a as f32, b as f32, c as f32]);
+            tracked.seg.push(s);
+            tracked.vis.push(v);
+        }
+    }
+    let work: usize = trajectories.iter().map(Vec::len).sum::<usize>() * tracked.flat.len().max(1);
     let threads = parallel::threads_for(work, 1 << 16, trajectories.len());
     let before = before as f32;
     let scores = parallel::map_ranges(trajectories.len(), threads, |range| {
-        let mut ws = Workspace::new(camera);
+        let mut ws = Workspace::new(grid, camera);
         range
             .map(|k| {
-                let after = ws.count_after(grid, scene, camera, &tracked, &trajectories[k], lam);
+                let after = ws.count_after(grid, scene, camera, &tracked, &table, &trajectories[k]);
                 1.0 - after as f32 / before
             })
             .collect::<Vec<_>>()
@@ -101,21 +108,31 @@ pub fn score_views(
 
 /// Per-thread buffers reused across candidates.
 struct Workspace {
+    /// (index into `Tracked`, added segmented count, added visible count)
     alive: Vec<(u32, u16, u16)>,
     pixels: Vec<u32>,
     mask: Vec<u8>,
-    scratch: Vec<[f64; 3]>,
+    scratch: RasterScratch,
+    seg0: Vec<u32>,
+    vis0: Vec<u32>,
 }
 
 const OUTSIDE: u32 = u32::MAX;
 
+/// Above 1/DENSE_FRACTION of the grid still undecided after the first frame, the
+/// remaining frames are carved densely over the whole grid.
+const DENSE_FRACTION: usize = 4;
+
 impl Workspace {
-    fn new(camera: &PinholeCamera) -> Self {
+    fn new(grid: &OccupancyGrid, camera: &PinholeCamera) -> Self {
+        let n = grid.spec().voxel_count();
         Self {
             alive: Vec::new(),
             pixels: Vec::new(),
             mask: vec![0; camera.pixel_count()],
-            scratch: Vec::new(),
+            scratch: RasterScratch::default(),
+            seg0: vec![0; n],
+            vis0: vec![0; n],
         }
     }
 
@@ -125,36 +142,70 @@ impl Workspace {
         grid: &OccupancyGrid,
         scene: &MeshScene,
         camera: &PinholeCamera,
-        tracked: &[Tracked],
+        tracked: &Tracked,
+        table: &HighConfidenceTable,
         poses: &[Pose],
-        lam: f32,
     ) -> usize {
         let m = poses.len() as u32;
-        // (index into `tracked`, added segmented count, added visible count)
+        let spec = grid.spec();
+        // The far end of the trajectory first, over the whole grid with the carving
+        // kernel: it is the most informative frame and removes most tracked voxels.
+        let last = &poses[poses.len() - 1];
+        let rect = grid_rect(spec, camera, last);
+        scene.render_mask_into(camera, last, rect, &mut self.mask, &mut self.scratch);
+        let frame = PreparedFrame::new(spec, camera, last, &self.mask);
+        self.seg0.fill(0);
+        self.vis0.fill(0);
+        carve_one(spec, &frame, &mut self.seg0, &mut self.vis0);
+        let remaining = m - 1;
         self.alive.clear();
-        self.alive.extend(
-            tracked
+        for (k, &i) in tracked.flat.iter().enumerate() {
+            let (ds, dv) = (self.seg0[i as usize], self.vis0[i as usize]);
+            if table.contains(
+                tracked.seg[k] + ds + remaining,
+                tracked.vis[k] + dv + remaining,
+            ) {
+                self.alive.push((k as u32, ds as u16, dv as u16));
+            }
+        }
+        let rest = &poses[..poses.len() - 1];
+        if self.alive.len() * DENSE_FRACTION > spec.voxel_count() {
+            // Many voxels still undecided (typically ones no view has seen yet): carving
+            // the whole grid per frame with the SIMD kernel beats visiting them one by one.
+            for pose in rest {
+                let rect = grid_rect(spec, camera, pose);
+                scene.render_mask_into(camera, pose, rect, &mut self.mask, &mut self.scratch);
+                let frame = PreparedFrame::new(spec, camera, pose, &self.mask);
+                carve_one(spec, &frame, &mut self.seg0, &mut self.vis0);
+            }
+            return tracked
+                .flat
                 .iter()
                 .enumerate()
-                .filter(|(_, t)| is_high_confidence(t.seg + m, t.vis + m, lam))
-                .map(|(i, _)| (i as u32, 0u16, 0u16)),
-        );
+                .filter(|&(k, &i)| {
+                    table.contains(
+                        tracked.seg[k] + self.seg0[i as usize],
+                        tracked.vis[k] + self.vis0[i as usize],
+                    )
+                })
+                .count();
+        }
         let width = camera.width;
-        for (done, pose) in poses.iter().rev().enumerate() {
+        for (done, pose) in rest.iter().rev().enumerate() {
             if self.alive.is_empty() {
                 break;
             }
-            let remaining = m - done as u32 - 1;
-            let proj = VoxelProjector::new(grid.spec(), camera, pose);
+            let remaining = m - done as u32 - 2;
+            let proj = VoxelProjector::new(spec, camera, pose);
             let intr = proj.intr;
             let [p0, ea, eb, ec] = proj.affine_f32();
             // Project every surviving voxel and find the bounding box of their pixels.
             self.pixels.clear();
             let (mut u0, mut u1, mut v0, mut v1) = (u32::MAX, 0u32, u32::MAX, 0u32);
-            for &(i, _, _) in &self.alive {
-                let [a, b, c] = tracked[i as usize].abc;
+            for &(k, _, _) in &self.alive {
+                let [a, b, c] = tracked.abc[k as usize];
                 let p: [f32; 3] =
-                    std::array::from_fn(|k| p0[k] + a * ea[k] + b * eb[k] + c * ec[k]);
+                    std::array::from_fn(|j| p0[j] + a * ea[j] + b * eb[j] + c * ec[j]);
                 match intr.pixel(p[0], p[1], p[2]) {
                     Some(px) => {
                         let (u, v) = (px % width, px / width);
@@ -173,29 +224,73 @@ impl Workspace {
             }
             let mask = &self.mask;
             let pixels = &self.pixels;
-            let mut k = 0;
-            self.alive.retain_mut(|(i, ds, dv)| {
-                let px = pixels[k];
-                k += 1;
+            let mut j = 0;
+            self.alive.retain_mut(|(k, ds, dv)| {
+                let px = pixels[j];
+                j += 1;
                 if px != OUTSIDE {
                     *dv += 1;
                     *ds += u16::from(mask[px as usize] != 0);
                 }
-                let t = &tracked[*i as usize];
-                is_high_confidence(
-                    t.seg + u32::from(*ds) + remaining,
-                    t.vis + u32::from(*dv) + remaining,
-                    lam,
+                let k = *k as usize;
+                table.contains(
+                    tracked.seg[k] + u32::from(*ds) + remaining,
+                    tracked.vis[k] + u32::from(*dv) + remaining,
                 )
             });
         }
         self.alive
             .iter()
-            .filter(|&&(i, ds, dv)| {
-                let t = &tracked[i as usize];
-                is_high_confidence(t.seg + u32::from(ds), t.vis + u32::from(dv), lam)
+            .filter(|&&(k, ds, dv)| {
+                let k = k as usize;
+                table.contains(
+                    tracked.seg[k] + u32::from(ds),
+                    tracked.vis[k] + u32::from(dv),
+                )
             })
             .count()
+    }
+}
+
+/// The pixels the grid's voxel centres can project to: the box of the projected corners
+/// of the cube (all voxel centres lie in their convex hull) when all are in front of the
+/// camera, else the whole image.
+fn grid_rect(spec: &crate::grid::GridSpec, camera: &PinholeCamera, cam2world: &Pose) -> PixelRect {
+    let full = PixelRect::full(camera);
+    let w2c = cam2world.inverse();
+    let o = spec.origin();
+    let (mut umin, mut umax, mut vmin, mut vmax) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for k in 0..8 {
+        let corner = nalgebra::Point3::new(
+            o[0] + if k & 1 == 0 { 0.0 } else { spec.size() },
+            o[1] + if k & 2 == 0 { 0.0 } else { spec.size() },
+            o[2] + if k & 4 == 0 { 0.0 } else { spec.size() },
+        );
+        let p = w2c.transform_point(&corner);
+        if !(p.z > 1e-9) {
+            return full;
+        }
+        let (u, v) = (
+            camera.fx * p.x / p.z + camera.cx,
+            camera.fy * p.y / p.z + camera.cy,
+        );
+        umin = umin.min(u);
+        umax = umax.max(u);
+        vmin = vmin.min(v);
+        vmax = vmax.max(v);
+    }
+    // One pixel of margin on each side covers the +0.5 rounding of the convention.
+    let clamp = |x: f64, hi: u32| x.clamp(0.0, hi as f64) as u32;
+    PixelRect {
+        u0: clamp((umin - 1.0).floor(), full.u1),
+        u1: clamp((umax + 1.0).ceil(), full.u1),
+        v0: clamp((vmin - 1.0).floor(), full.v1),
+        v1: clamp((vmax + 1.0).ceil(), full.v1),
     }
 }
 
@@ -276,6 +371,37 @@ mod tests {
             scores.iter().any(|&s| s > 0.1),
             "new views must carve something: {scores:?}"
         );
+    }
+
+    #[test]
+    fn scores_equal_the_definition_on_a_well_observed_grid() {
+        // Many frames already integrated: few voxels stay undecided, so the sparse path
+        // (per-voxel visits after the first frame) runs instead of the dense one.
+        let (mut grid, scene, cam) = setup();
+        let seen = ring(24, 0.35, 0.3, 0.1);
+        let masks: Vec<u8> = seen
+            .iter()
+            .flat_map(|p| scene.render_mask(&cam, p))
+            .collect();
+        grid.integrate_many(&cam, &seen, &masks).unwrap();
+        let trajectories: Vec<Vec<Pose>> = (0..10)
+            .map(|k| {
+                ring(
+                    4,
+                    0.25 + 0.02 * k as f64,
+                    0.15 + 0.03 * k as f64,
+                    0.5 * k as f64,
+                )
+            })
+            .collect();
+        let scores = score_views(&grid, &scene, &cam, &trajectories, 0.9).unwrap();
+        for (k, t) in trajectories.iter().enumerate() {
+            assert_eq!(
+                scores[k],
+                reference(&grid, &scene, &cam, t, 0.9),
+                "candidate {k}"
+            );
+        }
     }
 
     #[test]
