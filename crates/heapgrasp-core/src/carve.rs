@@ -67,12 +67,34 @@ pub(crate) fn carve(
     let frame =
         |k: usize| PreparedFrame::new(grid, camera, &poses[k], &masks[k * px..(k + 1) * px]);
     if voxels <= FRAME_PARALLEL_MAX_VOXELS && n >= threads && threads > 1 {
-        let partial = parallel::map_ranges(n, threads, |range| {
-            let mut seg = vec![0u32; voxels];
-            let mut vis = vec![0u32; voxels];
-            let frames: Vec<_> = range.map(frame).collect();
-            carve_slab(grid, 0..grid.resolution(), &frames, &mut seg, &mut vis);
-            (seg, vis)
+        // The calling thread carves the first share of frames straight into the grid;
+        // each other thread into private counts, summed at the end. (Fresh buffers cost
+        // page faults, so only the extra threads allocate.)
+        let ranges = parallel::split_range(n, threads);
+        let partial = std::thread::scope(|s| {
+            let handles: Vec<_> = ranges[1..]
+                .iter()
+                .cloned()
+                .map(|range| {
+                    let frame = &frame;
+                    s.spawn(move || {
+                        let mut seg = vec![0u32; voxels];
+                        let mut vis = vec![0u32; voxels];
+                        let frames: Vec<_> = range.map(frame).collect();
+                        carve_slab(grid, 0..grid.resolution(), &frames, &mut seg, &mut vis);
+                        (seg, vis)
+                    })
+                })
+                .collect();
+            let own: Vec<_> = ranges[0].clone().map(&frame).collect();
+            carve_slab(grid, 0..grid.resolution(), &own, segmented, visible);
+            handles
+                .into_iter()
+                .map(|h| match h.join() {
+                    Ok(v) => v,
+                    Err(payload) => std::panic::resume_unwind(payload),
+                })
+                .collect::<Vec<_>>()
         });
         for (seg, vis) in partial {
             segmented.iter_mut().zip(&seg).for_each(|(d, s)| *d += s);
