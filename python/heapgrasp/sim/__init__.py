@@ -1,0 +1,1 @@
+"""PyBullet simulation: scenes, hand-eye camera, motion, grasping, metrics."""
