@@ -8,13 +8,11 @@ from typing import Any
 
 import heapgrasp as hg
 import numpy as np
+import pybullet as pb
+import pybullet_data
 import pytest
-
-pb = pytest.importorskip("pybullet")
-pybullet_data = pytest.importorskip("pybullet_data")
-trimesh = pytest.importorskip("trimesh")
-
-from heapgrasp.sim.objects import (  # noqa: E402 (after the optional-dependency checks)
+import trimesh
+from heapgrasp.sim.objects import (
     MAX_COLLISION_PIECES,
     ObjectLibrary,
     ObjectModel,

@@ -7,9 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-pytest.importorskip("pybullet")
-
 from heapgrasp.sim.camera import CameraSpec
 from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.optics import Category, DepthModel

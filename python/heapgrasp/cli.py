@@ -28,6 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
         The top-level parser.
     """
     from heapgrasp import __version__, bench
+    from heapgrasp.sim import cli as sim_cli
 
     parser = argparse.ArgumentParser(
         prog="heapgrasp",
@@ -43,6 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
         dest="command", metavar="COMMAND", title="commands", required=True
     )
     bench.add_parser(commands)
+    sim_cli.add_parser(commands)
     return parser
 
 
