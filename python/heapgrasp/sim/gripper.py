@@ -1,0 +1,328 @@
+"""A free-flying Franka Panda hand and VGN-style grasp execution.
+
+The hand is the ``panda_hand`` + fingers of ``pybullet_data/franka_panda/panda.urdf``
+(8 cm maximum opening), written as a hand-only URDF next to the object cache, and is
+moved by a fixed constraint to a target pose, as VGN's simulation does; this is the
+"free-flying gripper" mode of the world, for experiments where arm kinematics are not
+the question.
+
+Frames: the **TCP** (tool centre point) frame is ``panda_grasptarget``, 0.105 m along
+the hand's z axis from its base: z is the approach direction (out of the palm, toward
+the object), the fingers close along y. A grasp is a TCP pose in the world frame plus a
+width; :func:`execute_grasp` runs VGN's protocol: pre-grasp 5 cm back along z, approach
+along z (abort on contact), close, lift 10 cm, shake, and check the object is held.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pybullet as pb
+import pybullet_data
+
+from heapgrasp.sim.objects import default_cache_dir
+from heapgrasp.sim.world import SimWorld
+
+__all__ = ["Grasp", "GraspOutcome", "GraspResult", "PandaHand", "execute_grasp"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Maximum opening of the Panda hand (both fingers), metres.
+MAX_OPENING = 0.08
+#: Distance from the hand base to the TCP along z, metres.
+TCP_OFFSET = 0.105
+
+_HAND_URDF = """<?xml version="1.0"?>
+<robot name="panda_hand_free">
+  <link name="panda_hand">
+    <inertial><origin xyz="0 0 0.04"/><mass value="0.81"/>
+      <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>
+    <visual><geometry><mesh filename="{m}/visual/hand.obj"/></geometry></visual>
+    <collision><geometry><mesh filename="{m}/collision/hand.obj"/></geometry></collision>
+  </link>
+  <link name="panda_leftfinger">
+    <contact><friction_anchor/><stiffness value="30000.0"/><damping value="1000.0"/>
+      <spinning_friction value="0.1"/><lateral_friction value="1.0"/></contact>
+    <inertial><origin xyz="0 0.01 0.02"/><mass value="0.1"/>
+      <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>
+    <visual><geometry><mesh filename="{m}/visual/finger.obj"/></geometry></visual>
+    <collision><geometry><mesh filename="{m}/collision/finger.obj"/></geometry></collision>
+  </link>
+  <link name="panda_rightfinger">
+    <contact><friction_anchor/><stiffness value="30000.0"/><damping value="1000.0"/>
+      <spinning_friction value="0.1"/><lateral_friction value="1.0"/></contact>
+    <inertial><origin xyz="0 -0.01 0.02"/><mass value="0.1"/>
+      <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>
+    <visual><origin rpy="0 0 3.14159265359"/>
+      <geometry><mesh filename="{m}/visual/finger.obj"/></geometry></visual>
+    <collision><origin rpy="0 0 3.14159265359"/>
+      <geometry><mesh filename="{m}/collision/finger.obj"/></geometry></collision>
+  </link>
+  <joint name="panda_finger_joint1" type="prismatic">
+    <parent link="panda_hand"/><child link="panda_leftfinger"/>
+    <origin xyz="0 0 0.0584"/><axis xyz="0 1 0"/>
+    <limit effort="20" lower="0.0" upper="0.04" velocity="0.2"/>
+  </joint>
+  <joint name="panda_finger_joint2" type="prismatic">
+    <parent link="panda_hand"/><child link="panda_rightfinger"/>
+    <origin xyz="0 0 0.0584"/><axis xyz="0 -1 0"/>
+    <limit effort="20" lower="0.0" upper="0.04" velocity="0.2"/>
+  </joint>
+</robot>
+"""
+
+
+def hand_urdf(cache_dir: Path | None = None) -> Path:
+    """Writes (once) and returns the hand-only URDF."""
+    root = (cache_dir or default_cache_dir()) / "robots"
+    root.mkdir(parents=True, exist_ok=True)
+    path = root / "panda_hand_free.urdf"
+    meshes = Path(pybullet_data.getDataPath()) / "franka_panda" / "meshes"
+    text = _HAND_URDF.format(m=meshes.as_posix())
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
+    return path
+
+
+@dataclass(frozen=True)
+class Grasp:
+    """A grasp: TCP pose in the world frame (z = approach direction) and opening width."""
+
+    pose: FloatArray
+    width: float
+
+    def __post_init__(self) -> None:
+        pose = np.asarray(self.pose, dtype=np.float64)
+        if pose.shape != (4, 4) or not np.isfinite(pose).all():
+            raise ValueError(f"Grasp.pose must be a finite (4, 4) matrix, got shape {pose.shape}")
+        r = pose[:3, :3]
+        if np.abs(r.T @ r - np.eye(3)).max() > 1e-6 or np.linalg.det(r) < 0:
+            raise ValueError("Grasp.pose must be a rigid transform")
+        if not 0.0 <= self.width <= MAX_OPENING + 1e-9:
+            raise ValueError(f"Grasp.width must be in [0, {MAX_OPENING}] m, got {self.width}")
+        object.__setattr__(self, "pose", pose)
+
+
+class GraspOutcome(str, Enum):
+    """How a grasp attempt ended."""
+
+    SUCCESS = "success"
+    COLLISION = "collision"
+    """The hand touched something at the pre-grasp pose or while approaching."""
+    EMPTY = "empty"
+    """The fingers closed on nothing, or dropped the object while lifting or shaking."""
+
+
+@dataclass(frozen=True)
+class GraspResult:
+    """Outcome of :func:`execute_grasp`."""
+
+    outcome: GraspOutcome
+    object_id: int | None
+    """World id of the object held after lifting, if any."""
+    duration: float
+    """Simulated time of the whole attempt (s)."""
+
+    @property
+    def success(self) -> bool:
+        """Whether an object was held after lifting and shaking."""
+        return self.outcome == GraspOutcome.SUCCESS
+
+
+def translate(x: float, y: float, z: float) -> FloatArray:
+    """A pure translation as a (4, 4) matrix."""
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+class PandaHand:
+    """The free-flying Panda hand in a :class:`SimWorld`."""
+
+    def __init__(self, world: SimWorld, *, max_force: float = 300.0) -> None:
+        self.world = world
+        self.client = world.client
+        self.max_force = max_force
+        self.body = pb.loadURDF(str(hand_urdf()), useFixedBase=False, physicsClientId=self.client)
+        # PyBullet places a body by its base's inertial frame, not its link frame.
+        inertial = pb.getDynamicsInfo(self.body, -1, physicsClientId=self.client)[3]
+        self.tcp2body = translate(0.0, 0.0, -TCP_OFFSET) @ translate(*inertial)
+        for joint in (0, 1):
+            pb.changeDynamics(self.body, joint, lateralFriction=1.0, physicsClientId=self.client)
+        # Fingers mirror each other (the URDF's mimic joint, as a gear constraint).
+        gear = pb.createConstraint(
+            self.body,
+            0,
+            self.body,
+            1,
+            pb.JOINT_GEAR,
+            [1, 0, 0],
+            [0, 0, 0],
+            [0, 0, 0],
+            physicsClientId=self.client,
+        )
+        pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=50, physicsClientId=self.client)
+        self.constraint = pb.createConstraint(
+            self.body,
+            -1,
+            -1,
+            -1,
+            pb.JOINT_FIXED,
+            [0, 0, 0],
+            [0, 0, 0],
+            [0, 0, 0],
+            physicsClientId=self.client,
+        )
+        self.tcp = np.eye(4)
+        self.time = 0.0
+        self.park()
+
+    # ---------------------------------------------------------------- kinematics
+    def _body_pose(self, tcp: FloatArray) -> tuple[list[float], list[float]]:
+        from heapgrasp.sim.world import _split_pose
+
+        return _split_pose(tcp @ self.tcp2body)
+
+    def reset(self, tcp: FloatArray, width: float = MAX_OPENING) -> None:
+        """Teleports the hand so its TCP is at ``tcp``, fingers at ``width``."""
+        pos, quat = self._body_pose(tcp)
+        pb.resetBasePositionAndOrientation(self.body, pos, quat, physicsClientId=self.client)
+        pb.changeConstraint(
+            self.constraint, pos, quat, maxForce=self.max_force, physicsClientId=self.client
+        )
+        for joint in (0, 1):
+            pb.resetJointState(self.body, joint, 0.5 * width, physicsClientId=self.client)
+        self._finger_targets(width)
+        self.tcp = np.array(tcp, dtype=np.float64)
+
+    def park(self) -> None:
+        """Moves the hand out of the way, high above the table."""
+        self.reset(translate(-0.5, -0.5, 1.0))
+
+    def _finger_targets(self, width: float) -> None:
+        for joint in (0, 1):
+            pb.setJointMotorControl2(
+                self.body,
+                joint,
+                pb.POSITION_CONTROL,
+                targetPosition=0.5 * width,
+                force=40.0,
+                physicsClientId=self.client,
+            )
+
+    def width(self) -> float:
+        """Current finger opening (m)."""
+        return float(
+            sum(pb.getJointState(self.body, j, physicsClientId=self.client)[0] for j in (0, 1))
+        )
+
+    def _step(self, n: int = 1) -> None:
+        for _ in range(n):
+            pb.stepSimulation(physicsClientId=self.client)
+        self.time += n * self.world.config.time_step
+
+    def contacts(self) -> set[int]:
+        """Bodies the hand touches (PyBullet ids)."""
+        pts = pb.getContactPoints(bodyA=self.body, physicsClientId=self.client)
+        return {int(p[2]) for p in pts if p[2] != self.body}
+
+    def finger_contacts(self) -> tuple[set[int], set[int]]:
+        """Bodies touched by the left and by the right finger."""
+        out = []
+        for link in (0, 1):
+            pts = pb.getContactPoints(bodyA=self.body, linkIndexA=link, physicsClientId=self.client)
+            out.append({int(p[2]) for p in pts if p[2] != self.body})
+        return out[0], out[1]
+
+    def move_linear(
+        self, target: FloatArray, *, speed: float = 0.1, abort_on_contact: bool = False
+    ) -> bool:
+        """Moves the TCP in a straight line to ``target`` at ``speed`` m/s (orientation
+        slerped). Returns False if it stopped on a contact."""
+        start = self.tcp.copy()
+        dist = float(np.linalg.norm(target[:3, 3] - start[:3, 3]))
+        dt = self.world.config.time_step
+        steps = max(1, math.ceil(dist / speed / dt))
+        from scipy.spatial.transform import Rotation, Slerp
+
+        slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([start[:3, :3], target[:3, :3]])))
+        for k in range(1, steps + 1):
+            s = k / steps
+            pose = np.eye(4)
+            pose[:3, :3] = slerp([s]).as_matrix()[0]
+            pose[:3, 3] = (1 - s) * start[:3, 3] + s * target[:3, 3]
+            pos, quat = self._body_pose(pose)
+            pb.changeConstraint(
+                self.constraint, pos, quat, maxForce=self.max_force, physicsClientId=self.client
+            )
+            self._step()
+            self.tcp = pose
+            if abort_on_contact and self.contacts():
+                return False
+        self._step(int(0.1 / dt))  # let the constraint catch up
+        return True
+
+    def close(self, seconds: float = 0.5) -> None:
+        """Closes the fingers (force-limited)."""
+        self._finger_targets(0.0)
+        self._step(int(seconds / self.world.config.time_step))
+
+    def open(self, seconds: float = 0.3) -> None:
+        """Opens the fingers fully."""
+        self._finger_targets(MAX_OPENING)
+        self._step(int(seconds / self.world.config.time_step))
+
+    def held_object(self) -> int | None:
+        """World id of the object both fingers touch, if the fingers are not shut."""
+        if self.width() < 0.1 * MAX_OPENING * 0.5:
+            return None
+        left, right = self.finger_contacts()
+        both = left & right
+        for oid, obj in self.world.objects.items():
+            if obj.body in both:
+                return oid
+        return None
+
+
+def execute_grasp(
+    hand: PandaHand,
+    grasp: Grasp,
+    *,
+    pregrasp_distance: float = 0.05,
+    lift_height: float = 0.10,
+    shake: bool = True,
+) -> GraspResult:
+    """Runs one grasp attempt (VGN's protocol) and returns its outcome.
+
+    The hand appears at the pre-grasp pose (``pregrasp_distance`` back along the
+    approach axis), opened to the grasp width plus 1 cm (capped at 8 cm); touching
+    anything there, or while approaching, is a collision. It then closes, lifts by
+    ``lift_height`` along world z, optionally shakes (±20° about the approach axis),
+    and succeeds if both fingers still touch one object and are not shut.
+    """
+    t0 = hand.time
+    pre = grasp.pose @ translate(0.0, 0.0, -pregrasp_distance)
+    hand.reset(pre, min(MAX_OPENING, grasp.width + 0.01))
+    hand._step(2)
+    if hand.contacts():
+        hand.park()
+        return GraspResult(GraspOutcome.COLLISION, None, hand.time - t0)
+    if not hand.move_linear(grasp.pose, abort_on_contact=True):
+        hand.park()
+        return GraspResult(GraspOutcome.COLLISION, None, hand.time - t0)
+    hand.close()
+    lift = translate(0.0, 0.0, lift_height) @ grasp.pose
+    hand.move_linear(lift, speed=0.2)
+    if shake and hand.held_object() is not None:
+        for angle in (0.35, -0.35, 0.0):
+            c, s = math.cos(angle), math.sin(angle)
+            turn = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+            hand.move_linear(lift @ turn, speed=0.5)
+    held = hand.held_object()
+    outcome = GraspOutcome.SUCCESS if held is not None else GraspOutcome.EMPTY
+    return GraspResult(outcome, held, hand.time - t0)

@@ -1,0 +1,125 @@
+"""The clutter-removal protocol of HEAPGrasp §VI-C and placing into the bin.
+
+A scene is handled until (i) every object has been picked and placed, (ii) two
+consecutive grasp attempts fail, or (iii) no grasp candidate is found. A successful
+grasp carries the object to a bin beside the workspace, opens the hand, and the object
+leaves the scene.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand, execute_grasp
+from heapgrasp.sim.metrics import Phase
+
+__all__ = ["PlanResult", "StopReason", "place_in_bin", "run_clutter_removal", "stop_reason"]
+
+#: TCP pose above the bin (beside the workspace, -y side), pointing down.
+BIN_POSE = np.array(
+    [[1.0, 0.0, 0.0, 0.15], [0.0, -1.0, 0.0, -0.25], [0.0, 0.0, -1.0, 0.25], [0.0, 0.0, 0.0, 1.0]]
+)
+
+
+class StopReason(str, Enum):
+    """Why a clutter-removal run ended."""
+
+    CLEARED = "cleared"
+    TWO_FAILURES = "two_consecutive_failures"
+    NO_CANDIDATE = "no_candidate"
+    MAX_ATTEMPTS = "max_attempts"
+
+
+def stop_reason(
+    objects_left: int, consecutive_failures: int, candidate_found: bool
+) -> StopReason | None:
+    """The protocol's stop rules, checked in order; None means "keep going"."""
+    if objects_left == 0:
+        return StopReason.CLEARED
+    if consecutive_failures >= 2:
+        return StopReason.TWO_FAILURES
+    if not candidate_found:
+        return StopReason.NO_CANDIDATE
+    return None
+
+
+@dataclass
+class PlanResult:
+    """What a pick planner returns for one phase."""
+
+    grasp: Grasp | None
+    camera_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Camera positions of the frames captured in this phase (world, m)."""
+    motion_time: float = 0.0
+    """Simulated time of the camera motions of this phase (s)."""
+    target_object: int | None = None
+
+
+def place_in_bin(hand: PandaHand, object_id: int) -> float:
+    """Carries the held object to the bin, drops it, and removes it from the world.
+    Returns the simulated time spent (s)."""
+    t0 = hand.time
+    up = hand.tcp.copy()
+    up[2, 3] = max(up[2, 3], BIN_POSE[2, 3])
+    hand.move_linear(up, speed=0.5)
+    hand.move_linear(BIN_POSE, speed=0.5)
+    hand.open()
+    if object_id in hand.world.objects:
+        hand.world.remove(object_id)
+    hand.park()
+    return hand.time - t0
+
+
+def run_clutter_removal(
+    hand: PandaHand,
+    plan: Callable[[], PlanResult],
+    *,
+    max_attempts: int = 50,
+) -> tuple[list[Phase], StopReason]:
+    """Runs the protocol with a pick planner (called once per phase) and returns the
+    phases and why it stopped."""
+    world = hand.world
+    total_failures = 0
+    phases: list[Phase] = []
+    consecutive = 0
+    while True:
+        if len(phases) >= max_attempts:
+            return phases, StopReason.MAX_ATTEMPTS
+        if (reason := stop_reason(len(world.objects), consecutive, True)) is not None:
+            return phases, reason
+        t0 = time.perf_counter()
+        planned = plan()
+        compute = time.perf_counter() - t0
+        if planned.grasp is None:
+            phases.append(
+                Phase(planned.camera_positions, None, "no_candidate", planned.motion_time, compute)
+            )
+            return phases, StopReason.NO_CANDIDATE
+        result = execute_grasp(hand, planned.grasp)
+        held = result.object_id
+        target = held if held is not None else planned.target_object
+        category = world.objects[target].category.value if target in world.objects else None
+        motion = planned.motion_time + result.duration
+        if result.outcome == GraspOutcome.SUCCESS and held is not None:
+            motion += place_in_bin(hand, held)
+            consecutive = 0
+        else:
+            consecutive += 1
+            total_failures += 1
+            hand.park()
+        phases.append(
+            Phase(
+                camera_positions=planned.camera_positions,
+                grasp_position=planned.grasp.pose[:3, 3].copy(),
+                outcome=result.outcome.value,
+                motion_time=motion,
+                compute_time=compute,
+                category=category,
+                object_id=target,
+            )
+        )

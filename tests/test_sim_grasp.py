@@ -1,0 +1,79 @@
+"""Grasp execution with the free-flying Panda hand."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand, execute_grasp
+from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
+from heapgrasp.sim.world import SimWorld
+
+TOP_DOWN = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # TCP z pointing down
+
+
+def box_model(tmp: Path, size: float = 0.05) -> ObjectModel:
+    path = tmp / "box.obj"
+    trimesh.creation.box(extents=(size, size, size)).export(path)
+    return ObjectModel(
+        name="test/box",
+        source="user",
+        visual_mesh=path,
+        collision_meshes=(path,),
+        mass=0.1,
+        split="test",
+        extents=(size, size, size),
+    )
+
+
+def tcp(position: tuple[float, float, float], rotation: np.ndarray = TOP_DOWN) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, :3] = rotation
+    m[:3, 3] = position
+    return m
+
+
+@pytest.fixture
+def world_with_box(tmp_path: Path) -> tuple[SimWorld, int]:
+    model = box_model(tmp_path)
+    world = SimWorld(ObjectLibrary([model]))
+    world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+    (oid,) = world.objects
+    return world, oid
+
+
+def test_top_down_grasp_of_a_box_succeeds(world_with_box: tuple[SimWorld, int]) -> None:
+    world, oid = world_with_box
+    with world:
+        x, y, z = world.object_pose(oid)[:3, 3]
+        hand = PandaHand(world)
+        result = execute_grasp(hand, Grasp(tcp((x, y, z)), width=0.07))
+        assert result.outcome == GraspOutcome.SUCCESS, result
+        assert result.object_id == oid
+        assert world.object_pose(oid)[2, 3] > z + 0.05, "the box was lifted"
+        assert result.duration > 0.5
+
+
+def test_grasp_in_empty_space_fails(world_with_box: tuple[SimWorld, int]) -> None:
+    world, _ = world_with_box
+    with world:
+        hand = PandaHand(world)
+        result = execute_grasp(hand, Grasp(tcp((0.05, 0.25, 0.03)), width=0.07))
+        assert result.outcome == GraspOutcome.EMPTY and result.object_id is None
+
+
+def test_grasp_through_the_table_collides(world_with_box: tuple[SimWorld, int]) -> None:
+    world, _ = world_with_box
+    with world:
+        hand = PandaHand(world)
+        result = execute_grasp(hand, Grasp(tcp((0.05, 0.25, -0.03)), width=0.07))
+        assert result.outcome == GraspOutcome.COLLISION
+
+
+def test_bad_grasps_are_rejected() -> None:
+    with pytest.raises(ValueError, match="width"):
+        Grasp(tcp((0, 0, 0)), width=0.2)
+    with pytest.raises(ValueError, match="rigid"):
+        Grasp(tcp((0, 0, 0), rotation=2 * np.eye(3)), width=0.05)

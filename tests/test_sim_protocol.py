@@ -1,0 +1,116 @@
+"""Clutter-removal stop rules, placing, and metrics."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from heapgrasp.sim.gripper import Grasp, PandaHand
+from heapgrasp.sim.metrics import Phase, aggregate, shortest_trajectory_ratio, trajectory_length
+from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
+from heapgrasp.sim.protocol import PlanResult, StopReason, run_clutter_removal, stop_reason
+from heapgrasp.sim.world import SimWorld
+
+DOWN = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])
+
+
+def boxes(tmp: Path, n: int) -> list[ObjectModel]:
+    out = []
+    for k in range(n):
+        size = 0.045 + 0.005 * k
+        path = tmp / f"box{k}.obj"
+        trimesh.creation.box(extents=(size, size, size)).export(path)
+        out.append(
+            ObjectModel(f"test/box{k}", "user", path, (path,), 0.1, "test", (size, size, size))
+        )
+    return out
+
+
+def tcp_at(p: np.ndarray, yaw: float = 0.0) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    m = np.eye(4)
+    m[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ DOWN
+    m[:3, 3] = p
+    return m
+
+
+def test_stop_rules() -> None:
+    assert stop_reason(0, 0, True) == StopReason.CLEARED
+    assert stop_reason(3, 2, True) == StopReason.TWO_FAILURES
+    assert stop_reason(3, 1, False) == StopReason.NO_CANDIDATE
+    assert stop_reason(3, 1, True) is None
+
+
+def run(tmp: Path, planner: str) -> tuple[list[Phase], StopReason, SimWorld]:
+    models = boxes(tmp, 3)
+    world = SimWorld(ObjectLibrary(models))
+    world.reset(layout="packed", n_objects=3, category="mixed", seed=1, models=models)
+    hand = PandaHand(world)
+
+    def plan() -> PlanResult:
+        if planner == "none":
+            return PlanResult(None)
+        cam = np.array([[0.15, 0.15, 0.5], [0.2, 0.15, 0.45]])
+        if planner == "empty":
+            return PlanResult(Grasp(tcp_at(np.array([0.02, 0.28, 0.03])), 0.07), cam, 1.0)
+        # Top-down, fingers square to the box's faces (boxes stand upright, random yaw),
+        # along whichever face axis keeps the fingers farther from the other boxes.
+        oid = min(world.objects)
+        pose = world.object_pose(oid)
+        others = [world.object_pose(o)[:3, 3] for o in world.objects if o != oid]
+
+        def clearance(yaw: float) -> float:
+            y_axis = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+            fingers = [pose[:3, 3] + s * 0.05 * y_axis for s in (-1, 1)]
+            return min((np.linalg.norm(f - o) for f in fingers for o in others), default=1.0)
+
+        base = float(np.arctan2(pose[1, 0], pose[0, 0]))
+        yaw = max((base, base + np.pi / 2), key=clearance)
+        return PlanResult(Grasp(tcp_at(pose[:3, 3], yaw), 0.08), cam, 1.0, target_object=oid)
+
+    phases, reason = run_clutter_removal(hand, plan)
+    return phases, reason, world
+
+
+def test_scripted_planner_clears_the_table(tmp_path: Path) -> None:
+    phases, reason, world = run(tmp_path, "object")
+    with world:
+        assert reason == StopReason.CLEARED, [p.outcome for p in phases]
+        assert [p.outcome for p in phases] == ["success"] * 3
+        assert not world.objects
+        stats = aggregate(phases, objects_total=3)
+        assert stats["grasp_success_rate"] == 1.0 and stats["objects_removed"] == 3
+        assert set(stats["per_category"]) == {"transparent", "specular", "opaque"}
+        assert stats["execution_time_s"]["mean"] > 1.0
+
+
+def test_two_consecutive_failures_stop_the_run(tmp_path: Path) -> None:
+    phases, reason, world = run(tmp_path, "empty")
+    with world:
+        assert reason == StopReason.TWO_FAILURES
+        assert [p.outcome for p in phases] == ["empty", "empty"]
+        assert len(world.objects) == 3
+        assert aggregate(phases, 3)["grasp_success_rate"] == 0.0
+
+
+def test_no_candidate_stops_the_run(tmp_path: Path) -> None:
+    phases, reason, world = run(tmp_path, "none")
+    with world:
+        assert reason == StopReason.NO_CANDIDATE
+        assert phases[0].outcome == "no_candidate" and not phases[0].attempted
+
+
+def test_metrics() -> None:
+    path = np.array([[0.0, 0.0, 0.0], [3.0, 0.0, 0.0], [3.0, 4.0, 0.0]])
+    assert trajectory_length(path) == pytest.approx(7.0)
+    assert shortest_trajectory_ratio(path, [3.0, 4.0, 0.0]) == pytest.approx(140.0)
+    assert trajectory_length(path[:1]) == 0.0
+    with pytest.raises(ValueError, match="grasp_position"):
+        shortest_trajectory_ratio(path, [0.0, 0.0, 0.0])
+    phase = Phase(path, np.array([3.0, 4.0, 0.0]), "success", 2.0, 0.5, category="opaque")
+    d = phase.to_dict()
+    assert d["execution_time_s"] == 2.5 and d["shortest_trajectory_ratio"] == pytest.approx(140.0)
+    stats = aggregate([phase], 1)
+    assert stats["trajectory_length_m"] == {"mean": 7.0, "std": 0.0}
