@@ -10,7 +10,13 @@ import trimesh
 from heapgrasp.sim.gripper import Grasp, PandaHand
 from heapgrasp.sim.metrics import Phase, aggregate, shortest_trajectory_ratio, trajectory_length
 from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
-from heapgrasp.sim.protocol import PlanResult, StopReason, run_clutter_removal, stop_reason
+from heapgrasp.sim.protocol import (
+    PlanResult,
+    StopReason,
+    run_clutter_removal,
+    stop_reason,
+    top_down_grasp,
+)
 from heapgrasp.sim.world import SimWorld
 
 DOWN = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])
@@ -55,20 +61,8 @@ def run(tmp: Path, planner: str) -> tuple[list[Phase], StopReason, SimWorld]:
         cam = np.array([[0.15, 0.15, 0.5], [0.2, 0.15, 0.45]])
         if planner == "empty":
             return PlanResult(Grasp(tcp_at(np.array([0.02, 0.28, 0.03])), 0.07), cam, 1.0)
-        # Top-down, fingers square to the box's faces (boxes stand upright, random yaw),
-        # along whichever face axis keeps the fingers farther from the other boxes.
         oid = min(world.objects)
-        pose = world.object_pose(oid)
-        others = [world.object_pose(o)[:3, 3] for o in world.objects if o != oid]
-
-        def clearance(yaw: float) -> float:
-            y_axis = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
-            fingers = [pose[:3, 3] + s * 0.05 * y_axis for s in (-1, 1)]
-            return min((np.linalg.norm(f - o) for f in fingers for o in others), default=1.0)
-
-        base = float(np.arctan2(pose[1, 0], pose[0, 0]))
-        yaw = max((base, base + np.pi / 2), key=clearance)
-        return PlanResult(Grasp(tcp_at(pose[:3, 3], yaw), 0.08), cam, 1.0, target_object=oid)
+        return PlanResult(top_down_grasp(world, oid), cam, 1.0, target_object=oid)
 
     phases, reason = run_clutter_removal(hand, plan)
     return phases, reason, world

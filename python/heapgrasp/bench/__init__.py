@@ -4,7 +4,9 @@ Each benchmark is a module with an ``add_parser(subparsers)`` function that regi
 its subcommand (and sets ``func``, the function that runs it, as a parser default):
 
 * :mod:`heapgrasp.bench.carve` -- ``heapgrasp bench carve``: Shape-from-Silhouette
-  carving, the Rust kernel against NumPy, numba and Open3D.
+  carving, the Rust kernel against NumPy, numba and Open3D;
+* :mod:`heapgrasp.bench.world` -- ``heapgrasp bench world``: ground-truth masks vs
+  PyBullet rendering, seconds per simulated grasp phase.
 
 Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`.
 """
@@ -13,7 +15,7 @@ from __future__ import annotations
 
 import argparse
 
-from heapgrasp.bench import carve
+from heapgrasp.bench import carve, world
 
 __all__ = ["add_parser"]
 
@@ -43,4 +45,5 @@ def add_parser(
         dest="benchmark", metavar="BENCHMARK", title="benchmarks", required=True
     )
     carve.add_parser(benches)
+    world.add_parser(benches)
     return p

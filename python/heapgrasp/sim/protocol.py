@@ -17,13 +17,25 @@ import numpy as np
 
 from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand, execute_grasp
 from heapgrasp.sim.metrics import Phase
+from heapgrasp.sim.world import SimWorld
 
-__all__ = ["PlanResult", "StopReason", "place_in_bin", "run_clutter_removal", "stop_reason"]
+__all__ = [
+    "PlanResult",
+    "StopReason",
+    "place_in_bin",
+    "run_clutter_removal",
+    "stop_reason",
+    "top_down_grasp",
+]
 
 #: TCP pose above the bin (beside the workspace, -y side), pointing down.
 BIN_POSE = np.array(
     [[1.0, 0.0, 0.0, 0.15], [0.0, -1.0, 0.0, -0.25], [0.0, 0.0, -1.0, 0.25], [0.0, 0.0, 0.0, 1.0]]
 )
+
+
+#: How far below an object's top a top-down grasp places the TCP at most (m).
+FINGER_DEPTH = 0.035
 
 
 class StopReason(str, Enum):
@@ -58,6 +70,39 @@ class PlanResult:
     motion_time: float = 0.0
     """Simulated time of the camera motions of this phase (s)."""
     target_object: int | None = None
+
+
+def top_down_grasp(world: SimWorld, object_id: int, width: float = 0.08) -> Grasp:
+    """A top-down grasp of an upright object from its true pose (a ground-truth baseline
+    for tests and benchmarks, not a perception-based planner): TCP at the object's
+    origin (raised so the fingers reach at most ``FINGER_DEPTH`` below its top), fingers
+    closing along its x or y axis: among the axes along which the object
+    is narrower than the opening, the one that keeps the fingers farther from the other
+    objects."""
+    pose = world.object_pose(object_id)
+    extents = world.objects[object_id].model.extents
+    others = [world.object_pose(o)[:3, 3] for o in world.objects if o != object_id]
+
+    def clearance(yaw: float) -> float:
+        y_axis = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+        fingers = [pose[:3, 3] + s * 0.05 * y_axis for s in (-1.0, 1.0)]
+        return float(min((np.linalg.norm(f - o) for f in fingers for o in others), default=1.0))
+
+    # Fingers close along the TCP's y axis: object y at yaw = base, object x at base + 90°.
+    base = float(np.arctan2(pose[1, 0], pose[0, 0]))
+    options = [
+        yaw for yaw, ext in ((base, extents[1]), (base + np.pi / 2, extents[0])) if ext < width
+    ]
+    yaw = max(options or [base], key=clearance)
+    c, s = np.cos(yaw), np.sin(yaw)
+    tcp = np.eye(4)
+    tcp[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.diag(
+        [1.0, -1.0, -1.0]
+    )
+    # No deeper than the fingers reach: the palm is ~4.7 cm above the TCP.
+    top = pose[2, 3] + 0.5 * extents[2]
+    tcp[:3, 3] = (pose[0, 3], pose[1, 3], max(pose[2, 3], top - FINGER_DEPTH))
+    return Grasp(tcp, width)
 
 
 def place_in_bin(hand: PandaHand, object_id: int) -> float:
