@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from heapgrasp.sim.camera import CameraSpec
+from heapgrasp.sim.motion import look_at
 from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.optics import Category, DepthModel
 from heapgrasp.sim.world import SimWorld
@@ -17,16 +18,6 @@ from heapgrasp.sim.world import SimWorld
 def library(tmp_path_factory: pytest.TempPathFactory) -> ObjectLibrary:
     cache = tmp_path_factory.mktemp("objects")
     return ObjectLibrary.default(cache, random_urdfs=12, procedural_per_kind=2, seed=0)
-
-
-def look_at(eye, target, up=(0.0, 0.0, 1.0)):
-    z = np.asarray(target, float) - np.asarray(eye, float)
-    z /= np.linalg.norm(z)
-    x = np.cross(z, up)
-    x /= np.linalg.norm(x)
-    m = np.eye(4)
-    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x, np.cross(z, x), z, eye
-    return m
 
 
 def ring(n: int, radius: float = 0.45, height: float = 0.4) -> list[np.ndarray]:

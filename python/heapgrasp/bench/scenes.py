@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from heapgrasp.sim.motion import look_at
+
 __all__ = [
     "CUBE",
     "SPHERES",
@@ -81,37 +83,6 @@ def camera_spec(width: int, height: int) -> CameraSpec:
     """
     s = width / 640.0
     return CameraSpec(width, height, 540.0 * s, 540.0 * s, width / 2.0 - 0.5, height / 2.0 - 0.5)
-
-
-def look_at(
-    eye: npt.ArrayLike, target: npt.ArrayLike, up: npt.ArrayLike = (0.0, 0.0, 1.0)
-) -> npt.NDArray[np.float64]:
-    """``cam2world`` of a camera at ``eye`` whose optical axis points at ``target``.
-
-    Same construction as ``Pose::look_at`` in the Rust core: ``z`` is the viewing
-    direction, ``x = z x up`` and ``y = z x x`` (OpenCV axes, y pointing down).
-
-    Parameters
-    ----------
-    eye, target, up : array_like, shape (3,)
-        Camera centre, point looked at and world up direction.
-
-    Returns
-    -------
-    numpy.ndarray, shape (4, 4), float64
-        The ``cam2world`` transform.
-    """
-    e = np.asarray(eye, dtype=np.float64)
-    z = np.asarray(target, dtype=np.float64) - e
-    z /= np.linalg.norm(z)
-    x = np.cross(z, np.asarray(up, dtype=np.float64))
-    if np.linalg.norm(x) < 1e-9:
-        x = np.cross(z, np.array([0.0, 1.0, 0.0]))
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    pose = np.eye(4)
-    pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = x, y, z, e
-    return pose
 
 
 def ring(n: int) -> npt.NDArray[np.float64]:
