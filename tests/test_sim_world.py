@@ -195,3 +195,32 @@ def test_bad_arguments_are_named(library: ObjectLibrary) -> None:
             w.remove(99)
     with pytest.raises(ValueError, match="fps"):
         CameraSpec(fps=0)
+
+
+def test_follow_captures_at_the_camera_rate_on_the_simulated_clock(
+    library: ObjectLibrary,
+) -> None:
+    from heapgrasp.sim.motion import ViewSphere, circle_waypoints, plan_waypoints
+
+    with SimWorld(library) as world:
+        world.reset(layout="packed", n_objects=2, category="opaque", seed=1)
+        assert world.time == 0.0
+        sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.30)
+        start = sphere.pose(0.0, 0.0)
+        (path,) = plan_waypoints(start, circle_waypoints(sphere, L=4)[1:2], sphere)
+        world.step(0.5)
+        cap = world.follow(path)
+        # 30 fps from the start of the motion, plus the resting end frame.
+        assert len(cap) == len(path.frame_times())
+        np.testing.assert_allclose(np.diff(cap.times)[:-1], 1 / 30, atol=1e-9)
+        assert cap.times[0] == pytest.approx(0.5)
+        assert cap.times[-1] == pytest.approx(0.5 + path.duration)
+        assert world.time == pytest.approx(0.5 + path.duration)
+        # Frames are those of the path, and see the scene.
+        np.testing.assert_allclose(cap.poses[0], path.poses[0], atol=1e-12)
+        np.testing.assert_allclose(cap.poses[-1], path.poses[-1], atol=1e-12)
+        assert cap.masks.shape[1:] == (240, 320)
+        assert all(f.mask.any() for f in cap.frames)
+        assert cap.frames[0].depth is None
+        with pytest.raises(ValueError, match="seconds"):
+            world.step(-1.0)

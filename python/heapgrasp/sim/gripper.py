@@ -26,6 +26,7 @@ import pybullet as pb
 import pybullet_data
 
 from heapgrasp.sim.objects import default_cache_dir
+from heapgrasp.sim.robot import Robot
 from heapgrasp.sim.world import SimWorld
 
 __all__ = ["Grasp", "GraspOutcome", "GraspResult", "PandaHand", "execute_grasp"]
@@ -179,8 +180,12 @@ class PandaHand:
             physicsClientId=self.client,
         )
         self.tcp = np.eye(4)
-        self.time = 0.0
         self.park()
+
+    @property
+    def time(self) -> float:
+        """The world's simulated clock (s)."""
+        return self.world.time
 
     # ---------------------------------------------------------------- kinematics
     def _body_pose(self, tcp: FloatArray) -> tuple[list[float], list[float]]:
@@ -221,10 +226,14 @@ class PandaHand:
             sum(pb.getJointState(self.body, j, physicsClientId=self.client)[0] for j in (0, 1))
         )
 
-    def _step(self, n: int = 1) -> None:
-        for _ in range(n):
-            pb.stepSimulation(physicsClientId=self.client)
-        self.time += n * self.world.config.time_step
+    def step(self, n: int = 1) -> None:
+        """Runs ``n`` physics steps (advancing the world's clock)."""
+        self.world.step_physics(n)
+
+    def move_camera(self, cam2world: FloatArray) -> FloatArray:
+        """The free-flying mode's camera is not attached to the hand (as in VGN's
+        simulation): it is exactly where asked."""
+        return np.asarray(cam2world, dtype=np.float64)
 
     def contacts(self) -> set[int]:
         """Bodies the hand touches (PyBullet ids)."""
@@ -260,22 +269,22 @@ class PandaHand:
             pb.changeConstraint(
                 self.constraint, pos, quat, maxForce=self.max_force, physicsClientId=self.client
             )
-            self._step()
+            self.step()
             self.tcp = pose
             if abort_on_contact and self.contacts():
                 return False
-        self._step(int(0.1 / dt))  # let the constraint catch up
+        self.step(int(0.1 / dt))  # let the constraint catch up
         return True
 
     def close(self, seconds: float = 0.5) -> None:
         """Closes the fingers (force-limited)."""
         self._finger_targets(0.0)
-        self._step(int(seconds / self.world.config.time_step))
+        self.step(int(seconds / self.world.config.time_step))
 
     def open(self, seconds: float = 0.3) -> None:
         """Opens the fingers fully."""
         self._finger_targets(MAX_OPENING)
-        self._step(int(seconds / self.world.config.time_step))
+        self.step(int(seconds / self.world.config.time_step))
 
     def held_object(self) -> int | None:
         """World id of the object both fingers touch, if the fingers are not shut."""
@@ -290,7 +299,7 @@ class PandaHand:
 
 
 def execute_grasp(
-    hand: PandaHand,
+    hand: Robot,
     grasp: Grasp,
     *,
     pregrasp_distance: float = 0.05,
@@ -308,7 +317,7 @@ def execute_grasp(
     t0 = hand.time
     pre = grasp.pose @ translate(0.0, 0.0, -pregrasp_distance)
     hand.reset(pre, min(MAX_OPENING, grasp.width + 0.01))
-    hand._step(2)
+    hand.step(2)
     if hand.contacts():
         hand.park()
         return GraspResult(GraspOutcome.COLLISION, None, hand.time - t0)

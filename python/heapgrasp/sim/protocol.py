@@ -15,8 +15,9 @@ from enum import Enum
 
 import numpy as np
 
-from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand, execute_grasp
+from heapgrasp.sim.gripper import Grasp, GraspOutcome, execute_grasp
 from heapgrasp.sim.metrics import Phase
+from heapgrasp.sim.robot import Robot
 from heapgrasp.sim.world import SimWorld
 
 __all__ = [
@@ -105,7 +106,7 @@ def top_down_grasp(world: SimWorld, object_id: int, width: float = 0.08) -> Gras
     return Grasp(tcp, width)
 
 
-def place_in_bin(hand: PandaHand, object_id: int) -> float:
+def place_in_bin(hand: Robot, object_id: int) -> float:
     """Carries the held object to the bin, drops it, and removes it from the world.
     Returns the simulated time spent (s)."""
     t0 = hand.time
@@ -121,7 +122,7 @@ def place_in_bin(hand: PandaHand, object_id: int) -> float:
 
 
 def run_clutter_removal(
-    hand: PandaHand,
+    hand: Robot,
     plan: Callable[[], PlanResult],
     *,
     max_attempts: int = 50,

@@ -19,10 +19,11 @@ renders RGB only when asked. The simulated depth sensor is
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -33,7 +34,11 @@ from heapgrasp.sim.camera import CameraSpec
 from heapgrasp.sim.objects import ObjectLibrary, ObjectModel, load_mesh
 from heapgrasp.sim.optics import Category, DepthModel
 
-__all__ = ["CATEGORY_GROUPS", "Frame", "SimObject", "SimWorld", "WorldConfig"]
+if TYPE_CHECKING:
+    from heapgrasp.sim.motion import TimedPath
+    from heapgrasp.sim.robot import CameraMount
+
+__all__ = ["CATEGORY_GROUPS", "Capture", "Frame", "SimObject", "SimWorld", "WorldConfig"]
 
 Layout = Literal["pile", "packed"]
 #: Scene groups of HEAPGrasp §VI-C.
@@ -110,6 +115,33 @@ class Frame:
 
 
 @dataclass
+class Capture:
+    """Frames captured along a trajectory (:meth:`SimWorld.follow`)."""
+
+    times: npt.NDArray[np.float64]
+    """Simulated clock (s) of each frame."""
+    frames: list[Frame]
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    @property
+    def poses(self) -> npt.NDArray[np.float64]:
+        """``(N, 4, 4)`` ``cam2world`` of the frames."""
+        return np.stack([f.cam2world for f in self.frames]) if self.frames else np.zeros((0, 4, 4))
+
+    @property
+    def positions(self) -> npt.NDArray[np.float64]:
+        """``(N, 3)`` camera positions (world, m)."""
+        return self.poses[:, :3, 3]
+
+    @property
+    def masks(self) -> npt.NDArray[np.bool_]:
+        """``(N, H, W)`` ideal silhouettes."""
+        return np.stack([f.mask for f in self.frames])
+
+
+@dataclass
 class _Meshes:
     vertices: npt.NDArray[np.float64]
     faces: npt.NDArray[np.int64]
@@ -140,6 +172,8 @@ class SimWorld:
         self._mesh_cache: dict[str, _Meshes] = {}
         self._ray_cache: dict[CameraSpec, npt.NDArray[np.float64]] = {}
         self.scene_info: dict[str, Any] = {}
+        self.time = 0.0
+        """Simulated clock (s): advanced by every physics step and camera motion."""
         self._reset_physics()
 
     # ------------------------------------------------------------------ lifecycle
@@ -232,6 +266,7 @@ class SimWorld:
             self._place_packed(chosen, cats)
         self._remove_outside()
         self.scene_info = {"layout": layout, "category": category, "seed": seed, "split": split}
+        self.time = 0.0  # the task's clock starts once the scene has settled
         return list(self.objects.values())
 
     def _categories(self, group: str, n: int) -> list[Category]:
@@ -390,14 +425,19 @@ class SimWorld:
                 self.opaque_scene.set_pose(self._opaque_ids[oid], pose)
 
     # ------------------------------------------------------------------ physics
-    def _simulate(self, seconds: float) -> None:
-        for _ in range(round(seconds / self.config.time_step)):
+    def step_physics(self, n: int = 1) -> None:
+        """Runs ``n`` physics steps and advances :attr:`time` by ``n * time_step``."""
+        for _ in range(n):
             pb.stepSimulation(physicsClientId=self.client)
+        self.time += n * self.config.time_step
+
+    def _simulate(self, seconds: float) -> None:
+        self.step_physics(round(seconds / self.config.time_step))
 
     def _settle(self) -> None:
         steps = int(self.config.settle_seconds / self.config.time_step)
         for k in range(steps):
-            pb.stepSimulation(physicsClientId=self.client)
+            self.step_physics()
             if k % 24 == 23 and self._at_rest():
                 break
 
@@ -409,7 +449,9 @@ class SimWorld:
         return True
 
     def step(self, seconds: float) -> None:
-        """Advances the physics by ``seconds``."""
+        """Advances the physics (and :attr:`time`) by ``seconds``."""
+        if not (math.isfinite(seconds) and seconds >= 0):
+            raise ValueError(f"seconds must be finite and >= 0, got {seconds}")
         self._simulate(seconds)
 
     # ------------------------------------------------------------------ sensing
@@ -460,6 +502,48 @@ class SimWorld:
         if rgb:
             frame.rgb = self.render_rgb(pose, cam)[0]
         return frame
+
+    def follow(
+        self,
+        path: TimedPath,
+        camera: CameraSpec | None = None,
+        *,
+        fps: float | None = None,
+        mount: CameraMount | None = None,
+        depth: bool = False,
+        rgb: bool = False,
+    ) -> Capture:
+        """Moves the hand-eye camera along a timed path, capturing at the camera rate.
+
+        Frames are taken at ``path.frame_times(fps)`` (``t = 0, 1/fps, ...`` and the
+        resting end frame), each stamped with the simulated clock :attr:`time` at the
+        start plus ``t``; the clock then advances by ``path.duration``. The objects are
+        at rest while the camera moves, so the physics is not stepped.
+
+        Parameters
+        ----------
+        path
+            Timed camera path (``cam2world`` poses), e.g. from
+            :func:`heapgrasp.sim.motion.plan_waypoints`.
+        camera
+            Intrinsics; default :meth:`CameraSpec.continuous` (320×240).
+        fps
+            Frame rate (Hz); default ``path.fps``.
+        mount
+            What carries the camera (:class:`~heapgrasp.sim.robot.CameraMount`): the arm
+            moves so its camera reaches each pose and the frame is taken from the pose it
+            actually reached; default a free-flying camera at exactly the path's poses.
+        depth, rgb
+            Also render sensor depth / PyBullet RGB for every frame (slower).
+        """
+        times, poses = path.sample(fps)
+        start = self.time
+        frames: list[Frame] = []
+        for pose in poses:
+            reached = pose if mount is None else mount.move_camera(pose)
+            frames.append(self.capture(reached, camera, depth=depth, rgb=rgb))
+        self.time = start + path.duration
+        return Capture(times=start + times, frames=frames)
 
     def render_rgb(
         self, cam2world: npt.NDArray[np.float64], camera: CameraSpec | None = None
