@@ -206,9 +206,7 @@ def gaussian_filter3d(volume: _F32, sigma: float) -> _F32:
 def maximum_filter3d(volume: _F32, window: int | None = None) -> _F32:
     """Max over offsets ``[-(w//2), w-1-w//2]`` per axis, clipped (``window=None``: 4)."""
 
-def nms3d(
-    volume: _F32, threshold: float, window: int | None = None
-) -> npt.NDArray[np.int64]:
+def nms3d(volume: _F32, threshold: float, window: int | None = None) -> npt.NDArray[np.int64]:
     """Voxels ``>= threshold`` equal to their window max, ``(K, 3)``, best first."""
 
 def kernel_level() -> str:

@@ -2,12 +2,11 @@
 
 Commands are grouped in subparsers, each group in its own module exposing
 ``add_parser(subparsers)``; every leaf command sets ``func``, a callable taking the
-parsed :class:`argparse.Namespace` and returning the exit status. Today::
+parsed :class:`argparse.Namespace` and returning the exit status::
 
-    heapgrasp bench carve [options]
-
-Further groups (``heapgrasp run``, ``heapgrasp sim ...``) and benchmarks
-(``heapgrasp bench score``) register the same way in :func:`build_parser`.
+    heapgrasp run [options]            simulated pick-and-place (HEAPGrasp, baselines)
+    heapgrasp bench carve|world|sim    benchmarks
+    heapgrasp sim capture              frames of a seeded scene
 """
 
 from __future__ import annotations
@@ -27,7 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     argparse.ArgumentParser
         The top-level parser.
     """
-    from heapgrasp import __version__, bench
+    from heapgrasp import __version__, bench, run_cli
     from heapgrasp.sim import cli as sim_cli
 
     parser = argparse.ArgumentParser(
@@ -43,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(
         dest="command", metavar="COMMAND", title="commands", required=True
     )
+    run_cli.add_parser(commands)
     bench.add_parser(commands)
     sim_cli.add_parser(commands)
     return parser

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 
 import numpy as np
@@ -109,7 +109,7 @@ class Grasp:
         object.__setattr__(self, "pose", pose)
 
 
-class GraspOutcome(str, Enum):
+class GraspOutcome(StrEnum):
     """How a grasp attempt ended."""
 
     SUCCESS = "success"

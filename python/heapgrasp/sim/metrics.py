@@ -81,6 +81,31 @@ class Phase:
         """Motion plus compute time (s)."""
         return self.motion_time + self.compute_time
 
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Phase:
+        """Inverse of :meth:`to_dict` (derived metrics are recomputed, not read)."""
+        own = {
+            "outcome",
+            "category",
+            "object_id",
+            "camera_path",
+            "grasp_position",
+            "motion_time_s",
+            "compute_time_s",
+        }
+        derived = {"trajectory_length_m", "execution_time_s", "shortest_trajectory_ratio"}
+        grasp = data.get("grasp_position")
+        return cls(
+            camera_positions=np.asarray(data["camera_path"], dtype=np.float64).reshape(-1, 3),
+            grasp_position=None if grasp is None else np.asarray(grasp, dtype=np.float64),
+            outcome=str(data["outcome"]),
+            motion_time=float(data["motion_time_s"]),
+            compute_time=float(data["compute_time_s"]),
+            category=data.get("category"),
+            object_id=data.get("object_id"),
+            extra={k: v for k, v in data.items() if k not in own | derived},
+        )
+
     def to_dict(self) -> dict[str, Any]:
         """The phase as plain data, with its metrics."""
         out: dict[str, Any] = {

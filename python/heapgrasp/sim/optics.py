@@ -23,7 +23,7 @@ the ``numpy.random.Generator`` passed in, so a seeded world gives the same depth
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
@@ -31,7 +31,7 @@ import numpy.typing as npt
 __all__ = ["Category", "DepthModel"]
 
 
-class Category(str, Enum):
+class Category(StrEnum):
     """Optical category of an object."""
 
     TRANSPARENT = "transparent"

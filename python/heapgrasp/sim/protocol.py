@@ -11,7 +11,8 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import StrEnum
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +40,7 @@ BIN_POSE = np.array(
 FINGER_DEPTH = 0.035
 
 
-class StopReason(str, Enum):
+class StopReason(StrEnum):
     """Why a clutter-removal run ended."""
 
     CLEARED = "cleared"
@@ -71,6 +72,11 @@ class PlanResult:
     motion_time: float = 0.0
     """Simulated time of the camera motions of this phase (s)."""
     target_object: int | None = None
+    compute_time: float | None = None
+    """Planning time measured by the planner (s); None = the wall time of the whole
+    ``plan()`` call (which then includes simulating the camera)."""
+    extra: dict[str, Any] = field(default_factory=dict)
+    """Planner-specific records (waypoints, targets, latencies), kept in the phase."""
 
 
 def top_down_grasp(world: SimWorld, object_id: int, width: float = 0.08) -> Grasp:
@@ -141,9 +147,18 @@ def run_clutter_removal(
         t0 = time.perf_counter()
         planned = plan()
         compute = time.perf_counter() - t0
+        if planned.compute_time is not None:
+            compute = planned.compute_time
         if planned.grasp is None:
             phases.append(
-                Phase(planned.camera_positions, None, "no_candidate", planned.motion_time, compute)
+                Phase(
+                    planned.camera_positions,
+                    None,
+                    "no_candidate",
+                    planned.motion_time,
+                    compute,
+                    extra=planned.extra,
+                )
             )
             return phases, StopReason.NO_CANDIDATE
         result = execute_grasp(hand, planned.grasp)
@@ -167,5 +182,6 @@ def run_clutter_removal(
                 compute_time=compute,
                 category=category,
                 object_id=target,
+                extra=planned.extra,
             )
         )

@@ -410,6 +410,10 @@ class SimWorld:
                 f"no object with id {object_id} in the world (ids: {sorted(self.objects)})"
             ) from None
 
+    def object_vertices(self, object_id: int) -> npt.NDArray[np.float64]:
+        """``(V, 3)`` vertices of an object's mesh in its own frame (m)."""
+        return self._mesh(self._get(object_id).model).vertices
+
     def object_pose(self, object_id: int) -> npt.NDArray[np.float64]:
         """``obj2world`` of an object, from PyBullet."""
         obj = self._get(object_id)

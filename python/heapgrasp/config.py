@@ -1,0 +1,240 @@
+"""Run configuration: HEAPGrasp Table I defaults, a TOML file, and CLI overrides.
+
+Every parameter of a closed-loop run lives in :class:`RunConfig`. Defaults are the
+paper's Table I (cube 0.30 m, 40³ grid, r = 0.33 m, θ_max = π/5, U×V = 40×20, L = 3,
+λ = 0.9, ε = 0.8, γ1 = 0.2, γ2 = 0.0 for the first waypoint then 0.35). A TOML file
+holds any subset of the fields at top level (names as below), e.g.::
+
+    method = "heapgrasp"
+    view_planner = "oracle"
+    L = 3
+    gamma2 = 0.35
+    noise = 0.05
+
+Unknown keys and values of the wrong type or range raise :class:`ConfigError` naming
+the key, the value and the file.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "CATEGORIES",
+    "GRASP_PLANNERS",
+    "LAYOUTS",
+    "METHODS",
+    "MOUNTS",
+    "VIEW_PLANNERS",
+    "ConfigError",
+    "RunConfig",
+]
+
+#: ``--method`` values: the proposed method and the baselines of HEAPGrasp §VI-B.
+METHODS = ("heapgrasp", "no-vp", "vgn", "hemisphere6")
+#: ``--view-planner`` values (used by ``heapgrasp``; the baselines fix their own views).
+VIEW_PLANNERS = ("oracle", "network", "circle", "hemisphere6")
+#: ``--grasp-planner`` values.
+GRASP_PLANNERS = ("antipodal", "network")
+LAYOUTS = ("pile", "packed")
+CATEGORIES = ("transparent", "specular", "opaque", "mixed")
+MOUNTS = ("free", "arm")
+
+
+class ConfigError(ValueError):
+    """A configuration value (or file) is invalid."""
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """All parameters of a simulated pick-and-place run (HEAPGrasp Table I defaults)."""
+
+    # -- what to run
+    method: str = "heapgrasp"
+    """``heapgrasp`` (view planning), ``no-vp`` (L waypoints on a circle, SfS),
+    ``vgn`` (circle, depth → TSDF) or ``hemisphere6`` (GraspNeRF's six views, SfS)."""
+    view_planner: str = "oracle"
+    """View planner of ``heapgrasp``: ``oracle`` (exact eq. 14 from the true meshes),
+    ``network`` (view network weights), ``circle`` or ``hemisphere6``."""
+    grasp_planner: str = "antipodal"
+    """``antipodal`` (analytic, no training) or ``network`` (VGN weights)."""
+    grasp_weights: str | None = None
+    """Path of grasp-network weights (``grasp_planner = "network"``)."""
+    view_weights: str | None = None
+    """Path of view-network weights (``view_planner = "network"``)."""
+    # -- scenes
+    layout: str = "pile"
+    category: str = "mixed"
+    objects: int = 5
+    scenes: int = 1
+    seed: int = 0
+    split: str = "test"
+    # -- perception
+    noise: float = 0.0
+    """Probability that each mask pixel is flipped (Table V)."""
+    cube_size: float = 0.30
+    """Side l of the scene cube (m)."""
+    resolution: int = 40
+    """N_x = N_y = N_z."""
+    lam: float = 0.9
+    """Occupancy threshold λ of the high-confidence grid."""
+    # -- grasp selection (eq. 15-17)
+    epsilon: float = 0.8
+    """Grasp score threshold ε."""
+    sigma: float = 1.0
+    """Gaussian smoothing of the grasp scores (voxels)."""
+    nms_window: int = 4
+    gamma1: float = 0.2
+    """Weight of the orientation term of dist (eq. 17)."""
+    # -- view planning (eq. 12-14, 18-19)
+    radius: float = 0.33
+    """Radius r of the view sphere (m)."""
+    theta_max: float = math.pi / 5
+    U: int = 40
+    V: int = 20
+    L: int = 3
+    """Number of view waypoints."""
+    gamma2_first: float = 0.0
+    """γ2 of eq. 18 for the first view waypoint."""
+    gamma2: float = 0.35
+    """γ2 of eq. 18 for the following view waypoints."""
+    initial_theta: float = 0.0
+    """Polar angle of the initial camera pose p⁰ on the view sphere (rad); 0 = above."""
+    initial_phi: float = 0.0
+    circle_theta: float = math.pi / 5
+    """Polar angle of the circle baselines' waypoints (rad)."""
+    hemisphere_radius: float = 0.5
+    hemisphere_theta: float = math.pi / 6
+    hemisphere_views: int = 6
+    # -- camera and motion
+    camera: str = "continuous"
+    """``continuous`` (320×240, HEAPGrasp) or ``still`` (640×480, fx = 540, VGN)."""
+    fps: float = 30.0
+    max_velocity: float = 0.25
+    max_acceleration: float = 1.0
+    max_jerk: float = 5.0
+    mount: str = "free"
+    """``free`` (free-flying camera and hand) or ``arm`` (Panda arm, hand-eye camera)."""
+    # -- protocol
+    max_attempts: int = 20
+    """Safety cap on grasp attempts per scene (the protocol normally stops first)."""
+
+    def __post_init__(self) -> None:
+        def choice(name: str, options: tuple[str, ...]) -> None:
+            value = getattr(self, name)
+            if value not in options:
+                raise ConfigError(f"{name}: must be one of {', '.join(options)}; got {value!r}")
+
+        choice("method", METHODS)
+        choice("view_planner", VIEW_PLANNERS)
+        choice("grasp_planner", GRASP_PLANNERS)
+        choice("layout", LAYOUTS)
+        choice("category", CATEGORIES)
+        choice("split", ("train", "test"))
+        choice("camera", ("continuous", "still"))
+        choice("mount", MOUNTS)
+
+        def between(name: str, lo: float, hi: float) -> None:
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
+                raise ConfigError(f"{name}: must be in [{lo}, {hi}]; got {value!r}")
+
+        def positive(name: str) -> None:
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise ConfigError(f"{name}: must be > 0; got {value!r}")
+
+        def at_least(name: str, lo: int) -> None:
+            value = getattr(self, name)
+            if not (isinstance(value, int) and not isinstance(value, bool) and value >= lo):
+                raise ConfigError(f"{name}: must be an integer >= {lo}; got {value!r}")
+
+        for name in ("lam", "epsilon", "noise"):
+            between(name, 0.0, 1.0)
+        between("noise", 0.0, 0.5)
+        between("theta_max", 0.0, math.pi / 2)
+        between("initial_theta", 0.0, math.pi / 2)
+        between("circle_theta", 0.0, math.pi / 2)
+        between("hemisphere_theta", 0.0, math.pi / 2)
+        for name in ("gamma1", "gamma2", "gamma2_first", "sigma"):
+            between(name, 0.0, 100.0)
+        between("initial_phi", -4 * math.pi, 4 * math.pi)
+        for name in (
+            "cube_size",
+            "radius",
+            "hemisphere_radius",
+            "fps",
+            "max_velocity",
+            "max_acceleration",
+            "max_jerk",
+        ):
+            positive(name)
+        at_least("objects", 1)
+        at_least("scenes", 1)
+        at_least("seed", 0)
+        at_least("resolution", 8)
+        if self.resolution > 512:
+            raise ConfigError(f"resolution: must be <= 512; got {self.resolution}")
+        for name in ("U", "V", "L", "nms_window", "hemisphere_views", "max_attempts"):
+            at_least(name, 1)
+
+    # ------------------------------------------------------------------ building
+    @classmethod
+    def field_names(cls) -> list[str]:
+        """Names of all parameters."""
+        return [f.name for f in fields(cls)]
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], *, source: str = "config") -> RunConfig:
+        """A config from plain data; unknown keys raise :class:`ConfigError`."""
+        return cls().replace(data, source=source)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> RunConfig:
+        """Reads a TOML file of parameters (top-level keys)."""
+        p = Path(path)
+        try:
+            data = tomllib.loads(p.read_text())
+        except FileNotFoundError:
+            raise ConfigError(f"config file not found: {p}") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{p}: not valid TOML: {exc}") from None
+        return cls.from_mapping(data, source=str(p))
+
+    def replace(self, changes: Mapping[str, Any], *, source: str = "config") -> RunConfig:
+        """A copy with ``changes`` applied (``None`` values are ignored)."""
+        known = {f.name: f for f in fields(self)}
+        clean: dict[str, Any] = {}
+        for key, value in changes.items():
+            if key not in known:
+                close = [n for n in known if n.lower() == key.lower().replace("-", "_")]
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise ConfigError(f"{source}: unknown parameter {key!r}{hint}")
+            if value is None:
+                continue
+            default = getattr(RunConfig(), key)
+            if (
+                isinstance(default, float)
+                and isinstance(value, int)
+                and not isinstance(value, bool)
+            ):
+                value = float(value)
+            if default is not None and not isinstance(value, type(default)):
+                raise ConfigError(
+                    f"{source}: {key} must be a {type(default).__name__}, got {value!r}"
+                )
+            clean[key] = value
+        try:
+            return dataclasses.replace(self, **clean)
+        except ConfigError as exc:
+            raise ConfigError(f"{source}: {exc}") from None
+
+    def to_dict(self) -> dict[str, Any]:
+        """All parameters as plain data (JSON/TOML-ready)."""
+        return dataclasses.asdict(self)

@@ -1,0 +1,161 @@
+"""Perception (HEAPGrasp §IV-A): segmentation → Shape from Silhouette, and the VGN
+baseline's depth → TSDF.
+
+A :class:`Segmenter` turns a captured :class:`~heapgrasp.sim.world.Frame` into a binary
+silhouette; :class:`SilhouettePerception` carves every frame into the occupancy grid
+(eq. 9-10, Rust core) and serves the high-confidence grid ``Ŝ≥λ``.
+:class:`DepthPerception` fuses sensor depth into a TSDF for the VGN baseline.
+
+Segmentation sources:
+
+* :class:`IdealSegmenter` — the simulator's exact masks;
+* :class:`NoisySegmenter` — each pixel flipped with probability ``p`` (Table V);
+* a learned segmenter plugs in through the same :class:`Segmenter` protocol.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+import numpy.typing as npt
+
+from heapgrasp import OccupancyGrid, PinholeCamera, TSDFVolume
+from heapgrasp.grasping.volumes import GridFrame
+from heapgrasp.sim.world import Frame
+
+__all__ = [
+    "DepthPerception",
+    "IdealSegmenter",
+    "NoisySegmenter",
+    "Segmenter",
+    "SilhouettePerception",
+    "tsdf_occupancy",
+]
+
+F32 = npt.NDArray[np.float32]
+
+
+@runtime_checkable
+class Segmenter(Protocol):
+    """Frame → binary silhouette ``(H, W)`` (True = object)."""
+
+    name: str
+
+    def segment(self, frame: Frame) -> npt.NDArray[np.bool_]:
+        """The silhouette of ``frame``."""
+        ...
+
+
+class IdealSegmenter:
+    """The simulator's exact masks (ground truth)."""
+
+    name = "ideal"
+
+    def segment(self, frame: Frame) -> npt.NDArray[np.bool_]:
+        """Returns ``frame.mask``."""
+        return frame.mask
+
+
+class NoisySegmenter:
+    """Ideal masks with every pixel flipped independently with probability ``p``
+    (HEAPGrasp Table V)."""
+
+    name = "noisy"
+
+    def __init__(self, p: float, seed: int = 0) -> None:
+        if not (0.0 <= p <= 0.5):
+            raise ValueError(f"noise probability p must be in [0, 0.5], got {p}")
+        self.p = float(p)
+        self.rng = np.random.default_rng(seed)
+
+    def segment(self, frame: Frame) -> npt.NDArray[np.bool_]:
+        """``frame.mask`` XOR Bernoulli(p) noise."""
+        if self.p == 0.0:
+            return frame.mask
+        flips = self.rng.random(frame.mask.shape) < self.p
+        return np.logical_xor(frame.mask, flips)
+
+
+@dataclass
+class SilhouettePerception:
+    """Shape from Silhouette over every captured frame (eq. 9-10)."""
+
+    frame: GridFrame
+    segmenter: Segmenter = field(default_factory=IdealSegmenter)
+    lam: float = 0.9
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.lam <= 1.0:
+            raise ValueError(f"lam must be in [0, 1], got {self.lam}")
+        self.grid = OccupancyGrid(self.frame.origin, self.frame.size, self.frame.resolution)
+        self.frames_seen = 0
+
+    def reset(self) -> None:
+        """Forgets every frame (a new phase)."""
+        self.grid.reset()
+        self.frames_seen = 0
+
+    def update(self, frames: Sequence[Frame]) -> None:
+        """Segments and carves ``frames`` (all with the same camera)."""
+        if not frames:
+            return
+        camera: PinholeCamera = frames[0].camera.core()
+        masks = np.stack([self.segmenter.segment(f) for f in frames])
+        poses = np.stack([f.cam2world for f in frames])
+        self.grid.integrate_many(masks, camera, np.ascontiguousarray(poses))
+        self.frames_seen += len(frames)
+
+    def occupancy(self) -> F32:
+        """``Ŝ_{0-1}`` (eq. 10)."""
+        return self.grid.occupancy()
+
+    def grasp_input(self) -> F32:
+        """The high-confidence grid ``Ŝ≥λ``: the grasp planner's input."""
+        return self.grid.high_confidence(self.lam)
+
+
+def tsdf_occupancy(values: F32, weights: F32) -> F32:
+    """Occupancy read off a TSDF: 1 where a voxel was observed at or behind a surface
+    (``weight > 0`` and ``value <= 0``), else 0. Unobserved space counts as free, as
+    for a depth camera that never saw it."""
+    return ((weights > 0) & (values <= 0)).astype(np.float32)
+
+
+@dataclass
+class DepthPerception:
+    """The VGN baseline's perception: sensor depth fused into a TSDF."""
+
+    frame: GridFrame
+    truncation: float = 0.03
+
+    def __post_init__(self) -> None:
+        if not self.truncation > 0:
+            raise ValueError(f"truncation must be > 0, got {self.truncation}")
+        self.tsdf = TSDFVolume(
+            self.frame.origin, self.frame.size, self.frame.resolution, self.truncation
+        )
+        self.frames_seen = 0
+
+    def reset(self) -> None:
+        """Forgets every frame."""
+        self.tsdf.reset()
+        self.frames_seen = 0
+
+    def update(self, frames: Sequence[Frame]) -> None:
+        """Fuses the frames' sensor depth (they must have been captured with depth)."""
+        for f in frames:
+            if f.depth is None:
+                raise ValueError("DepthPerception needs frames captured with depth=True")
+            self.tsdf.integrate(f.depth, f.camera.core(), f.cam2world)
+            self.frames_seen += 1
+
+    def tsdf_values(self) -> F32:
+        """The TSDF (VGN's network input)."""
+        return self.tsdf.values()
+
+    def grasp_input(self) -> F32:
+        """Occupancy for an occupancy-based grasp planner (:func:`tsdf_occupancy`)."""
+        return tsdf_occupancy(self.tsdf.values(), self.tsdf.weights())

@@ -1,0 +1,383 @@
+"""The closed loop of HEAPGrasp (Fig. 2, §IV) and its baselines (§VI-B), one phase at a time.
+
+A phase starts with the hand-eye camera at its initial pose ``p⁰`` and ends at the
+grasp (footnote 3 of the paper). :class:`Pipeline.plan` runs it:
+
+1. capture at ``p⁰`` and update the grid (perception, §IV-A);
+2. for ``heapgrasp`` (view planning): at every view waypoint ``ℓ = 0 .. L-1`` plan
+   grasps on ``Ŝ≥λ`` (eq. 11, 15), keep the target grasp closest to the previous one
+   (eq. 16-17), score the U×V candidates (eq. 13/14) and move to
+   ``argmax s + γ2 h`` (eq. 18-19; ``γ2 = gamma2_first`` at ``ℓ = 0``), capturing
+   continuously along the interpolated, ruckig-timed path (eq. 8);
+   for the fixed-view methods (``no-vp``, ``vgn``, ``hemisphere6``) visit the fixed
+   waypoints the same way;
+3. plan grasps on the final grid: ``heapgrasp`` keeps the target of eq. 16, the
+   baselines take the top-scoring grasp.
+
+The camera path of the phase is every captured camera position followed by the grasp
+position (the camera reaches the grasp with the hand). The phase's compute time is the
+measured time of perception, grasp planning, view planning and selection (not the time
+spent simulating the camera); its motion time is the ruckig duration of every camera
+motion plus the straight approach to the pre-grasp pose.
+
+:func:`build_pipeline` assembles a pipeline from a :class:`~heapgrasp.config.RunConfig`;
+every stage can also be passed in (any object satisfying its protocol).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from heapgrasp.config import ConfigError, RunConfig
+from heapgrasp.grasping.volumes import (
+    GraspCandidate,
+    GraspPlanner,
+    GridFrame,
+    select_candidates,
+)
+from heapgrasp.perception import (
+    DepthPerception,
+    IdealSegmenter,
+    NoisySegmenter,
+    Segmenter,
+    SilhouettePerception,
+)
+from heapgrasp.selection import select_next_waypoint, select_target, top_scoring
+from heapgrasp.sim.camera import CameraSpec
+from heapgrasp.sim.gripper import Grasp
+from heapgrasp.sim.motion import MotionLimits, ViewSphere, plan_waypoints, time_path
+from heapgrasp.sim.protocol import PlanResult
+from heapgrasp.sim.robot import Robot
+from heapgrasp.sim.world import Capture, Frame, SimWorld
+from heapgrasp.viewplan import OracleViewScorer, ViewContext, ViewScorer, fixed_waypoints
+
+__all__ = [
+    "Pipeline",
+    "build_pipeline",
+    "make_grasp_planner",
+    "make_robot",
+    "make_segmenter",
+    "make_view_scorer",
+]
+
+F64 = npt.NDArray[np.float64]
+
+#: Distance of the pre-grasp pose behind the grasp along its approach axis (m).
+PREGRASP_DISTANCE = 0.05
+
+
+def _candidate_record(c: GraspCandidate | None) -> dict[str, Any] | None:
+    if c is None:
+        return None
+    return {
+        "position": c.position.tolist(),
+        "quaternion": c.quaternion.tolist(),
+        "width": c.width,
+        "score": c.score,
+    }
+
+
+@dataclass
+class Pipeline:
+    """One method's phase planner (see the module docstring)."""
+
+    config: RunConfig
+    world: SimWorld
+    robot: Robot
+    grasp_planner: GraspPlanner
+    view_scorer: ViewScorer | None = None
+    segmenter: Segmenter = field(default_factory=IdealSegmenter)
+    rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
+
+    def __post_init__(self) -> None:
+        cfg = self.config
+        self.frame = GridFrame((0.0, 0.0, 0.0), cfg.cube_size, cfg.resolution)
+        self.sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), cfg.cube_size, radius=cfg.radius)
+        self.candidates = self.sphere.candidates(cfg.U, cfg.V, cfg.theta_max)
+        self.limits = MotionLimits(cfg.max_velocity, cfg.max_acceleration, cfg.max_jerk)
+        self.uses_depth = cfg.method == "vgn"
+        if self.uses_depth:
+            # VGN's depth camera: 640×480 at 30 fps (HEAPGrasp §VI-B).
+            self.camera = CameraSpec.still()
+            self.perception: SilhouettePerception | DepthPerception = DepthPerception(self.frame)
+        else:
+            self.camera = (
+                CameraSpec.continuous() if cfg.camera == "continuous" else CameraSpec.still()
+            )
+            self.perception = SilhouettePerception(self.frame, self.segmenter, cfg.lam)
+        self.adaptive = cfg.method == "heapgrasp" and cfg.view_planner in ("oracle", "network")
+        if self.adaptive and self.view_scorer is None:
+            raise ConfigError(f"view_planner {cfg.view_planner!r} needs a view scorer")
+
+    # ------------------------------------------------------------------ pieces
+    def initial_pose(self) -> F64:
+        """``p⁰``: on the view sphere at ``(initial_phi, initial_theta)``."""
+        return self.sphere.pose(self.config.initial_phi, self.config.initial_theta)
+
+    def fixed_waypoints(self) -> F64:
+        """Waypoints of a fixed-view method (or view planner)."""
+        cfg = self.config
+        kind = cfg.view_planner if cfg.method == "heapgrasp" else cfg.method
+        kind = {"no-vp": "circle", "vgn": "circle"}.get(kind, kind)
+        return fixed_waypoints(
+            kind,
+            self.sphere,
+            L=cfg.L,
+            circle_theta=cfg.circle_theta,
+            phi0=cfg.initial_phi,
+            rng=self.rng,
+            hemisphere_radius=cfg.hemisphere_radius,
+            hemisphere_theta=cfg.hemisphere_theta,
+            hemisphere_views=cfg.hemisphere_views,
+        )
+
+    def _capture(self, pose: F64) -> Frame:
+        return self.world.capture(self.robot.move_camera(pose), self.camera, depth=self.uses_depth)
+
+    def _perceive(self, frames: list[Frame]) -> float:
+        t0 = time.perf_counter()
+        self.perception.update(frames)
+        return time.perf_counter() - t0
+
+    def grasp_candidates(self) -> list[GraspCandidate]:
+        """Grasp planning on the current grid and eq. 15's post-processing."""
+        cfg = self.config
+        if (
+            isinstance(self.perception, DepthPerception)
+            and getattr(self.grasp_planner, "input_kind", "occupancy") == "tsdf"
+        ):
+            grid = self.perception.tsdf_values()
+        else:
+            grid = self.perception.grasp_input()
+        volumes = self.grasp_planner.predict(grid, self.frame)
+        return select_candidates(
+            volumes, epsilon=cfg.epsilon, sigma=cfg.sigma, nms_window=cfg.nms_window
+        )
+
+    def _move(self, start: F64, goal: F64) -> tuple[Capture, float, float]:
+        (path,) = plan_waypoints(start, [goal], self.sphere, self.limits, self.config.fps)
+        cap = self.world.follow(path, self.camera, mount=self.robot, depth=self.uses_depth)
+        return cap, path.duration, self._perceive(cap.frames[1:])
+
+    def _object_near(self, point: F64) -> int | None:
+        best, best_d = None, 0.03
+        for oid in self.world.objects:
+            pose = self.world.object_pose(oid)
+            verts = self.world.object_vertices(oid) @ pose[:3, :3].T + pose[:3, 3]
+            d = float(np.min(np.linalg.norm(verts - point, axis=1)))
+            if d < best_d:
+                best, best_d = oid, d
+        return best
+
+    # ------------------------------------------------------------------ one phase
+    def plan(self) -> PlanResult:
+        """Runs one phase up to the grasp (see the module docstring)."""
+        cfg = self.config
+        self.robot.park()
+        self.perception.reset()
+        compute = 0.0
+        motion = 0.0
+        current = self.initial_pose()
+        first = self._capture(current)
+        compute += self._perceive([first])
+        positions = [first.cam2world[:3, 3]]
+        current = first.cam2world
+        waypoints: list[dict[str, Any]] = []
+        target: GraspCandidate | None = None
+        if self.adaptive:
+            assert self.view_scorer is not None
+            for ell in range(cfg.L):
+                t0 = time.perf_counter()
+                cands = self.grasp_candidates()
+                target = select_target(cands, target, cfg.gamma1) or target
+                t1 = time.perf_counter()
+                assert isinstance(self.perception, SilhouettePerception)
+                ctx = ViewContext(
+                    self.perception.grid,
+                    current,
+                    self.candidates,
+                    self.sphere,
+                    self.camera,
+                    cfg.lam,
+                    self.world.object_scene,
+                )
+                scores = self.view_scorer.scores(ctx)
+                t2 = time.perf_counter()
+                gamma2 = cfg.gamma2_first if ell == 0 else cfg.gamma2
+                u, v = select_next_waypoint(
+                    scores,
+                    self.candidates,
+                    current,
+                    None if target is None else target.pose,
+                    gamma2,
+                    cfg.gamma1,
+                )
+                t3 = time.perf_counter()
+                compute += t3 - t0
+                goal = self.candidates[u, v]
+                cap, duration, carve = self._move(current, goal)
+                compute += carve
+                motion += duration
+                positions.extend(cap.positions[1:])
+                current = cap.poses[-1]
+                waypoints.append(
+                    {
+                        "index": [u, v],
+                        "position": goal[:3, 3].tolist(),
+                        "view_score": float(scores[u, v]),
+                        "view_score_max": float(scores.max()),
+                        "gamma2": gamma2,
+                        "target": _candidate_record(target),
+                        "grasp_candidates": len(cands),
+                        "frames": len(cap),
+                        "duration_s": duration,
+                        "grasp_planning_s": t1 - t0,
+                        "view_planning_s": t2 - t1,
+                        "latency_s": t3 - t0,
+                    }
+                )
+        else:
+            for goal in self.fixed_waypoints():
+                cap, duration, carve = self._move(current, goal)
+                compute += carve
+                motion += duration
+                positions.extend(cap.positions[1:])
+                current = cap.poses[-1]
+                waypoints.append(
+                    {
+                        "position": goal[:3, 3].tolist(),
+                        "frames": len(cap),
+                        "duration_s": duration,
+                    }
+                )
+        t0 = time.perf_counter()
+        cands = self.grasp_candidates()
+        if self.adaptive:
+            chosen = select_target(cands, target, cfg.gamma1)
+        else:
+            chosen = top_scoring(cands)
+        final_latency = time.perf_counter() - t0
+        compute += final_latency
+        extra: dict[str, Any] = {
+            "waypoints": waypoints,
+            "frames": self.perception.frames_seen,
+            "final_candidates": len(cands),
+            "final_planning_s": final_latency,
+            "target_grasp": _candidate_record(chosen),
+        }
+        if chosen is None:
+            return PlanResult(
+                None,
+                np.asarray(positions),
+                motion,
+                compute_time=compute,
+                extra=extra,
+            )
+        grasp_position = chosen.pose[:3, 3]
+        # The camera travels with the hand to the pre-grasp pose, then approaches.
+        pregrasp = chosen.pose.copy()
+        pregrasp[:3, 3] -= PREGRASP_DISTANCE * chosen.pose[:3, 2]
+        approach = np.stack([current, current.copy()])
+        approach[1, :3, 3] = pregrasp[:3, 3]
+        motion += time_path(approach, self.limits).duration
+        positions.append(grasp_position)
+        return PlanResult(
+            Grasp(chosen.pose, min(chosen.width, 0.08)),
+            np.asarray(positions),
+            motion,
+            target_object=self._object_near(grasp_position),
+            compute_time=compute,
+            extra=extra,
+        )
+
+
+# --------------------------------------------------------------------------- builders
+
+
+def make_segmenter(config: RunConfig, seed: int = 0) -> Segmenter:
+    """Ideal masks, or masks with pixel-flip noise ``config.noise`` (Table V)."""
+    if config.noise > 0:
+        return NoisySegmenter(config.noise, seed=seed)
+    return IdealSegmenter()
+
+
+def _weights(path: str | None, kind: str, option: str) -> Path:
+    if path:
+        p = Path(path)
+        if not p.is_file():
+            raise ConfigError(f"{option}: weights file not found: {p}")
+        return p
+    from heapgrasp.nets.weights import find_default
+
+    found = find_default(kind)  # type: ignore[arg-type]
+    if found is None:
+        raise ConfigError(
+            f"{option}: no {kind}-network weights ship with this version; pass a weights "
+            f"file, or use the analytic/oracle planners"
+        )
+    return found
+
+
+def make_grasp_planner(config: RunConfig) -> GraspPlanner:
+    """The configured grasp planner (``antipodal`` or ``network``)."""
+    if config.grasp_planner == "antipodal":
+        from heapgrasp.grasping.antipodal import AntipodalPlanner
+
+        return AntipodalPlanner()
+    from heapgrasp.grasping.network import NetworkGraspPlanner
+
+    planner = NetworkGraspPlanner(_weights(config.grasp_weights, "grasp", "grasp_weights"))
+    if config.method == "vgn":
+        planner.input_kind = "tsdf"  # type: ignore[attr-defined]
+    return planner
+
+
+def make_view_scorer(config: RunConfig) -> ViewScorer | None:
+    """The configured view scorer; None for fixed-view methods."""
+    if config.method != "heapgrasp" or config.view_planner in ("circle", "hemisphere6"):
+        return None
+    if config.view_planner == "oracle":
+        return OracleViewScorer()
+    from heapgrasp.viewplan_network import NetworkViewScorer
+
+    return NetworkViewScorer(_weights(config.view_weights, "view", "view_weights"))
+
+
+def make_robot(config: RunConfig, world: SimWorld) -> Robot:
+    """The free-flying hand or the Panda arm (``config.mount``)."""
+    if config.mount == "arm":
+        from heapgrasp.sim.arm import PandaArm
+
+        return PandaArm(world)
+    from heapgrasp.sim.gripper import PandaHand
+
+    return PandaHand(world)
+
+
+def build_pipeline(
+    config: RunConfig,
+    world: SimWorld,
+    *,
+    robot: Robot | None = None,
+    grasp_planner: GraspPlanner | None = None,
+    view_scorer: ViewScorer | None = None,
+    segmenter: Segmenter | None = None,
+    seed: int = 0,
+) -> Pipeline:
+    """A :class:`Pipeline` for ``config`` in ``world`` (after ``world.reset``); any stage
+    passed explicitly replaces the configured one."""
+    return Pipeline(
+        config=config,
+        world=world,
+        robot=robot if robot is not None else make_robot(config, world),
+        grasp_planner=grasp_planner if grasp_planner is not None else make_grasp_planner(config),
+        view_scorer=view_scorer if view_scorer is not None else make_view_scorer(config),
+        segmenter=segmenter if segmenter is not None else make_segmenter(config, seed),
+        rng=np.random.default_rng(seed),
+    )

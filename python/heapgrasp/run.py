@@ -1,0 +1,355 @@
+"""Simulated pick-and-place runs: scenes → clutter removal → ``results.json``.
+
+:func:`run` executes ``config.scenes`` seeded scenes (scene ``i`` uses seed
+``config.seed + i``, so every method sees the same scenes) and writes, in the output
+directory:
+
+* ``config.json`` — the full :class:`~heapgrasp.config.RunConfig`;
+* ``scenes.jsonl`` — one JSON record per finished scene, appended and flushed as soon as
+  the scene ends, so an interrupted run loses nothing (``resume=True`` skips the
+  scenes already there);
+* ``results.json`` — the aggregate (:func:`summarize`), rewritten after every scene.
+
+Scenes run in a process pool when ``workers > 1`` (each worker builds its own
+PyBullet world); a scene that raises is recorded with its error and the run goes on.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+import traceback
+from collections import Counter
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from heapgrasp.config import ConfigError, RunConfig
+from heapgrasp.sim.metrics import Phase, aggregate
+
+__all__ = [
+    "RESULTS_FILE",
+    "SCENES_FILE",
+    "RunExistsError",
+    "format_summary",
+    "load_records",
+    "run",
+    "run_scene",
+    "summarize",
+]
+
+SCENES_FILE = "scenes.jsonl"
+RESULTS_FILE = "results.json"
+CONFIG_FILE = "config.json"
+
+
+class RunExistsError(ValueError):
+    """The output directory already holds a run (and ``resume`` was not asked for)."""
+
+
+def _method_label(config: RunConfig) -> str:
+    if config.method == "heapgrasp":
+        return f"heapgrasp ({config.view_planner} views, {config.grasp_planner} grasps)"
+    return f"{config.method} ({config.grasp_planner} grasps)"
+
+
+def run_scene(
+    config: RunConfig,
+    index: int,
+    *,
+    category: str | None = None,
+    gui: bool = False,
+) -> dict[str, Any]:
+    """Runs scene ``index`` (seed ``config.seed + index``) to the end of the clutter-removal
+    protocol and returns its record (phases with metrics, stop reason, timings)."""
+    from heapgrasp.pipeline import build_pipeline
+    from heapgrasp.sim.objects import ObjectLibrary
+    from heapgrasp.sim.protocol import run_clutter_removal
+    from heapgrasp.sim.world import SimWorld, WorldConfig
+
+    t0 = time.perf_counter()
+    seed = config.seed + index
+    group = category or config.category
+    library = ObjectLibrary.default()
+    with SimWorld(
+        library, config=WorldConfig(cube_size=config.cube_size), gui=gui, seed=seed
+    ) as world:
+        world.reset(
+            layout=config.layout,  # type: ignore[arg-type]
+            n_objects=config.objects,
+            category=group,
+            seed=seed,
+            split=config.split,  # type: ignore[arg-type]
+        )
+        scene = world.to_dict()
+        total = len(world.objects)
+        pipeline = build_pipeline(config, world, seed=seed)
+        phases, reason = run_clutter_removal(
+            pipeline.robot, pipeline.plan, max_attempts=config.max_attempts
+        )
+    return {
+        "scene": index,
+        "seed": seed,
+        "category": group,
+        "objects_total": total,
+        "stop_reason": reason.value,
+        "phases": [p.to_dict() for p in phases],
+        "wall_time_s": time.perf_counter() - t0,
+        "world": scene,
+    }
+
+
+def _safe_scene(config: RunConfig, index: int, category: str | None) -> dict[str, Any]:
+    try:
+        return run_scene(config, index, category=category)
+    except Exception as exc:  # recorded, the run goes on
+        return {
+            "scene": index,
+            "seed": config.seed + index,
+            "category": category or config.category,
+            "error": f"{type(exc).__name__}: {exc}",
+            "traceback": traceback.format_exc(limit=8),
+        }
+
+
+def _init_worker() -> None:
+    # One core per scene: the pool provides the parallelism.
+    os.environ["HEAPGRASP_NUM_THREADS"] = "1"
+    try:
+        import torch
+
+        torch.set_num_threads(1)
+    except ImportError:
+        pass
+
+
+def _stats(values: Sequence[float]) -> dict[str, float | None]:
+    if not values:
+        return {"mean": None, "std": None}
+    a = np.asarray(values, dtype=np.float64)
+    return {"mean": float(a.mean()), "std": float(a.std())}
+
+
+def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """``results.json``: the §VI-D metrics over every phase of every finished scene."""
+    done = sorted((r for r in records if "error" not in r), key=lambda r: int(r["scene"]))
+    failed = [r for r in records if "error" in r]
+    phases: list[Phase] = []
+    phase_dicts: list[dict[str, Any]] = []
+    for r in done:
+        for k, p in enumerate(r["phases"]):
+            phases.append(Phase.from_dict(p))
+            phase_dicts.append({"scene": r["scene"], "phase": k, **p})
+    metrics = aggregate(phases, sum(int(r["objects_total"]) for r in done))
+    latencies = [
+        w["latency_s"]
+        for p in phase_dicts
+        for w in p.get("waypoints", [])
+        if w.get("latency_s") is not None
+    ]
+    per_group: dict[str, Any] = {}
+    for group in sorted({r["category"] for r in done}):
+        sel = [r for r in done if r["category"] == group]
+        per_group[group] = aggregate(
+            [Phase.from_dict(p) for r in sel for p in r["phases"]],
+            sum(int(r["objects_total"]) for r in sel),
+        )
+        per_group[group].pop("per_category", None)
+    return {
+        "method": config.method,
+        "label": _method_label(config),
+        "view_planner": config.view_planner if config.method == "heapgrasp" else None,
+        "grasp_planner": config.grasp_planner,
+        **metrics,
+        "per_scene_group": per_group,
+        "scenes_completed": len(done),
+        "scenes_failed": [{"scene": r["scene"], "error": r["error"]} for r in failed],
+        "stop_reasons": dict(Counter(r["stop_reason"] for r in done)),
+        "wall_time_per_scene_s": _stats([float(r["wall_time_s"]) for r in done]),
+        "planning_latency_per_waypoint_s": _stats(latencies),
+        "config": config.to_dict(),
+        "phases": phase_dicts,
+    }
+
+
+def load_records(out: Path) -> list[dict[str, Any]]:
+    """Scene records of ``out/scenes.jsonl`` (a torn last line is ignored)."""
+    path = Path(out) / SCENES_FILE
+    if not path.exists():
+        return []
+    records = []
+    for line in path.read_text().splitlines():
+        if not line.strip():
+            continue
+        try:
+            records.append(json.loads(line))
+        except json.JSONDecodeError:
+            print(f"heapgrasp: ignoring a torn record in {path}", file=sys.stderr)
+    return records
+
+
+def _write_json(path: Path, data: dict[str, Any]) -> None:
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(data, indent=2))
+    tmp.replace(path)
+
+
+def _check_resume(out: Path, config: RunConfig, resume: bool) -> list[dict[str, Any]]:
+    records = load_records(out)
+    if not records:
+        return []
+    if not resume:
+        raise RunExistsError(
+            f"{out} already holds {len(records)} finished scene(s); pass --resume to "
+            "continue that run, or choose another --out"
+        )
+    saved_path = out / CONFIG_FILE
+    if saved_path.exists():
+        saved = json.loads(saved_path.read_text())
+        mine = config.to_dict()
+        diff = sorted(k for k in mine if k != "scenes" and saved.get(k) != mine[k])
+        if diff:
+            detail = ", ".join(f"{k}: {saved.get(k)!r} -> {mine[k]!r}" for k in diff)
+            raise ConfigError(f"--resume: the configuration differs from {saved_path} ({detail})")
+    # Failed scenes are retried on resume.
+    return [r for r in records if "error" not in r]
+
+
+def run(
+    config: RunConfig,
+    out: Path | None = None,
+    *,
+    resume: bool = False,
+    workers: int = 1,
+    categories: Sequence[str] | None = None,
+    progress: bool = True,
+    gui: bool = False,
+    on_scene: Callable[[dict[str, Any]], None] | None = None,
+) -> dict[str, Any]:
+    """Runs every scene of ``config`` and returns :func:`summarize` of all of them.
+
+    Parameters
+    ----------
+    out
+        Output directory (created); None keeps results in memory only.
+    resume
+        Continue a run in ``out``: finished scenes are kept and skipped.
+    workers
+        Scenes run in parallel in a process pool when > 1.
+    categories
+        Scene group of each scene (default ``config.category`` for all).
+    on_scene
+        Called with each finished scene record.
+    """
+    from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
+
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    if categories is not None and len(categories) != config.scenes:
+        raise ValueError(f"categories: need one per scene ({config.scenes}), got {len(categories)}")
+    if gui and workers > 1:
+        raise ValueError("gui: needs workers = 1")
+    records: list[dict[str, Any]] = []
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        records = _check_resume(out, config, resume)
+        if resume:  # rewrite without failed scenes, which run again
+            (out / SCENES_FILE).write_text("".join(json.dumps(r) + "\n" for r in records))
+        _write_json(out / CONFIG_FILE, config.to_dict())
+    done = {int(r["scene"]) for r in records}
+    pending = [i for i in range(config.scenes) if i not in done]
+
+    def category_of(i: int) -> str | None:
+        return None if categories is None else categories[i]
+
+    bar = tqdm(
+        total=config.scenes,
+        initial=len(done),
+        desc=config.method,
+        unit="scene",
+        disable=not progress,
+        file=sys.stderr,
+    )
+
+    def finish(record: dict[str, Any]) -> None:
+        records.append(record)
+        if out is not None:
+            with (out / SCENES_FILE).open("a") as fh:
+                fh.write(json.dumps(record) + "\n")
+                fh.flush()
+                os.fsync(fh.fileno())
+            _write_json(out / RESULTS_FILE, summarize(config, records))
+        if on_scene is not None:
+            on_scene(record)
+        ok = sum(p["outcome"] == "success" for r in records for p in r.get("phases", []))
+        tried = sum(p["outcome"] != "no_candidate" for r in records for p in r.get("phases", []))
+        bar.set_postfix_str(f"grasps {ok}/{tried}")
+        bar.update(1)
+
+    try:
+        if workers == 1:
+            for i in pending:
+                if gui:
+                    finish(run_scene(config, i, category=category_of(i), gui=True))
+                else:
+                    finish(_safe_scene(config, i, category_of(i)))
+        else:
+            ctx = get_context("spawn")
+            with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker) as pool:
+                futures: list[Future[dict[str, Any]]] = [
+                    pool.submit(_safe_scene, config, i, category_of(i)) for i in pending
+                ]
+                from concurrent.futures import as_completed
+
+                for fut in as_completed(futures):
+                    finish(fut.result())
+    finally:
+        bar.close()
+    summary = summarize(config, records)
+    if out is not None:
+        _write_json(out / RESULTS_FILE, summary)
+    return summary
+
+
+def _fmt(stat: dict[str, float | None], digits: int = 2) -> str:
+    if stat.get("mean") is None:
+        return "–"
+    return f"{stat['mean']:.{digits}f} ± {stat['std']:.{digits}f}"
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """A plain-text table of a :func:`summarize` result (overall and per scene group)."""
+    rows = [("overall", summary), *list(summary.get("per_scene_group", {}).items())]
+    head = (
+        f"{'scenes':<12} {'success (%)':>22} {'removed':>9} {'trajectory (m)':>15} "
+        f"{'shortest ratio (%)':>19} {'exec time (s)':>14}"
+    )
+    lines = [summary.get("label", summary["method"]), head, "-" * len(head)]
+    for name, s in rows:
+        rate = s.get("grasp_success_rate")
+        succ = (
+            "–"
+            if rate is None
+            else f"{100 * rate:.1f} ({s['grasps_succeeded']}/{s['grasps_attempted']})"
+        )
+        removed = f"{s['objects_removed']}/{s.get('objects_total', '?')}"
+        lines.append(
+            f"{name:<12} {succ:>22} {removed:>9} {_fmt(s['trajectory_length_m']):>15} "
+            f"{_fmt(s['shortest_trajectory_ratio'], 0):>19} {_fmt(s['execution_time_s']):>14}"
+        )
+    lat = summary.get("planning_latency_per_waypoint_s", {})
+    wall = summary.get("wall_time_per_scene_s", {})
+    lines.append(
+        f"planning latency per waypoint: {_fmt(lat, 3)} s; wall-clock per scene: "
+        f"{_fmt(wall, 1)} s; stop reasons: {summary.get('stop_reasons')}"
+    )
+    if summary.get("scenes_failed"):
+        lines.append(f"FAILED scenes: {summary['scenes_failed']}")
+    return "\n".join(lines)

@@ -1,0 +1,171 @@
+"""View planning over the U×V spherical candidates (HEAPGrasp eq. 12-14).
+
+A :class:`ViewScorer` scores every view-waypoint candidate ``p̄^{u,v}`` of eq. 12 for
+the current grid; :func:`heapgrasp.selection.select_next_waypoint` then applies eq. 18.
+
+* :class:`OracleViewScorer` — the exact eq. 14 score of each candidate: the grid is
+  hypothetically carved with the silhouettes of the simulator's true meshes seen along
+  ``f(p̄^ℓ, p̄^{u,v})`` (Rust :func:`heapgrasp.score_views`). An upper bound the paper
+  never had, and the label generator of the learned scorer (Algorithm 1).
+* ``heapgrasp.viewplan_network.NetworkViewScorer`` — the view network (eq. 13).
+
+The baselines use fixed waypoints instead (:func:`fixed_waypoints`): ``circle`` ("w/o
+VP" and VGN: L waypoints evenly spaced around the scene) and ``hemisphere6``
+(GraspNeRF: six waypoints on a hemisphere centred in the workspace, r = 0.5 m,
+θ = π/6, φ ~ U(0, 2π), looking at the workspace centre).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+import numpy.typing as npt
+
+from heapgrasp import MeshScene, OccupancyGrid, score_views
+from heapgrasp.sim.camera import CameraSpec
+from heapgrasp.sim.motion import (
+    ViewSphere,
+    circle_waypoints,
+    hemisphere_waypoints,
+    interpolate,
+)
+
+__all__ = [
+    "OracleViewScorer",
+    "ViewContext",
+    "ViewScorer",
+    "fixed_waypoints",
+    "subsample_path",
+]
+
+F32 = npt.NDArray[np.float32]
+F64 = npt.NDArray[np.float64]
+
+
+@dataclass
+class ViewContext:
+    """What a view scorer may look at when the camera reaches a view waypoint."""
+
+    grid: OccupancyGrid
+    """SfS grid after every frame so far (eq. 10)."""
+    current_pose: F64
+    """Camera pose at the current view waypoint ``p̄^ℓ``."""
+    candidates: F64
+    """``(U, V, 4, 4)`` candidates of eq. 12."""
+    sphere: ViewSphere
+    camera: CameraSpec
+    lam: float
+    scene: MeshScene | None = None
+    """The true meshes at their current poses (only the oracle may use them)."""
+
+
+@runtime_checkable
+class ViewScorer(Protocol):
+    """Scores the U×V candidates (eq. 13): higher = better next waypoint."""
+
+    name: str
+
+    def scores(self, ctx: ViewContext) -> F32:
+        """``(U, V)`` float32 scores."""
+        ...
+
+
+def subsample_path(poses: F64, n: int) -> F64:
+    """At most ``n`` poses of a geometric path, evenly spaced in arc length, the first
+    (already seen) pose excluded and the last included."""
+    if len(poses) <= 1:
+        return poses
+    arc = np.concatenate(
+        [[0.0], np.cumsum(np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1))]
+    )
+    if arc[-1] <= 0:
+        return poses[-1:]
+    want = arc[-1] * np.arange(1, n + 1) / n
+    idx = np.unique(np.clip(np.searchsorted(arc, want - 1e-12), 1, len(poses) - 1))
+    return np.asarray(poses[idx], dtype=np.float64)
+
+
+class OracleViewScorer:
+    """Exact eq. 14 scores from the true meshes (see the module docstring).
+
+    Parameters
+    ----------
+    frames_per_candidate
+        Silhouettes per hypothetical trajectory ``f(p̄^ℓ, p̄^{u,v})``, evenly spaced in arc
+        length (the real capture at 30 fps takes more; the score saturates well before).
+    step
+        Sample spacing of the interpolated path (m).
+    """
+
+    name = "oracle"
+
+    def __init__(self, frames_per_candidate: int = 10, step: float = 0.01) -> None:
+        if frames_per_candidate < 1:
+            raise ValueError(f"frames_per_candidate must be >= 1, got {frames_per_candidate}")
+        if not step > 0:
+            raise ValueError(f"step must be > 0, got {step}")
+        self.frames_per_candidate = int(frames_per_candidate)
+        self.step = float(step)
+
+    def trajectories(self, ctx: ViewContext) -> list[F64]:
+        """The hypothetical frames of every candidate, flattened ``u``-major."""
+        flat = ctx.candidates.reshape(-1, 4, 4)
+        out = []
+        for pose in flat:
+            path = interpolate(ctx.current_pose, pose, ctx.sphere, step=self.step)
+            out.append(np.ascontiguousarray(subsample_path(path, self.frames_per_candidate)))
+        return out
+
+    def scores(self, ctx: ViewContext) -> F32:
+        """Eq. 14 for every candidate."""
+        if ctx.scene is None:
+            raise ValueError("OracleViewScorer needs the true meshes (ViewContext.scene)")
+        u, v = ctx.candidates.shape[:2]
+        # Candidates at theta = 0 coincide for every u: score that column once.
+        top = bool(np.allclose(ctx.candidates[:, 0, :3, 3], ctx.candidates[0, 0, :3, 3]))
+        if top and v > 1:
+            rest = np.ascontiguousarray(ctx.candidates[:, 1:]).reshape(-1, 4, 4)
+            keep = np.concatenate([ctx.candidates[:1, 0], rest])
+        else:
+            keep = ctx.candidates.reshape(-1, 4, 4)
+        sub = ViewContext(
+            ctx.grid, ctx.current_pose, keep[:, None], ctx.sphere, ctx.camera, ctx.lam, ctx.scene
+        )
+        s = score_views(ctx.grid, ctx.scene, ctx.camera.core(), self.trajectories(sub), ctx.lam)
+        if top and v > 1:
+            out = np.empty((u, v), dtype=np.float32)
+            out[:, 0] = s[0]
+            out[:, 1:] = s[1:].reshape(u, v - 1)
+            return out
+        return s.reshape(u, v)
+
+
+def fixed_waypoints(
+    kind: str,
+    sphere: ViewSphere,
+    *,
+    L: int = 3,
+    circle_theta: float = math.pi / 5,
+    phi0: float = 0.0,
+    rng: np.random.Generator | None = None,
+    hemisphere_radius: float = 0.5,
+    hemisphere_theta: float = math.pi / 6,
+    hemisphere_views: int = 6,
+) -> F64:
+    """Waypoints of the fixed-view baselines: ``"circle"`` (L evenly spaced at polar
+    angle ``circle_theta``) or ``"hemisphere6"`` (GraspNeRF; random azimuths from
+    ``rng``, visited in increasing azimuth)."""
+    if kind == "circle":
+        return circle_waypoints(sphere, L=L, theta=circle_theta, phi0=phi0)
+    if kind == "hemisphere6":
+        return hemisphere_waypoints(
+            rng if rng is not None else np.random.default_rng(0),
+            sphere.target,
+            n=hemisphere_views,
+            radius=hemisphere_radius,
+            theta=hemisphere_theta,
+        )
+    raise ValueError(f"fixed waypoints: kind must be 'circle' or 'hemisphere6', got {kind!r}")
