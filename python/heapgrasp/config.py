@@ -227,7 +227,7 @@ class RunConfig:
                 value = float(value)
             if default is not None and not isinstance(value, type(default)):
                 raise ConfigError(
-                    f"{source}: {key} must be a {type(default).__name__}, got {value!r}"
+                    f"{source}: {key} must be of type {type(default).__name__}, got {value!r}"
                 )
             clean[key] = value
         try:

@@ -1,0 +1,74 @@
+"""RunConfig: Table I defaults, TOML files, CLI precedence, clear errors."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from heapgrasp.cli import build_parser, main
+from heapgrasp.config import ConfigError, RunConfig
+from heapgrasp.run_cli import config_from_args
+
+
+def test_defaults_are_table_one() -> None:
+    c = RunConfig()
+    assert (c.cube_size, c.resolution, c.radius, c.theta_max) == (0.30, 40, 0.33, math.pi / 5)
+    assert (c.U, c.V, c.L, c.lam, c.epsilon, c.gamma1) == (40, 20, 3, 0.9, 0.8, 0.2)
+    assert (c.gamma2_first, c.gamma2, c.objects) == (0.0, 0.35, 5)
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"method": "magic"}, "method: must be one of"),
+        ({"lam": 1.5}, r"lam: must be in \[0.0, 1.0\]; got 1.5"),
+        ({"L": 0}, "L: must be an integer >= 1; got 0"),
+        ({"objects": 2.5}, "objects must be of type int"),
+        ({"radius": -0.3}, "radius: must be > 0"),
+        ({"noise": 0.7}, "noise: must be in"),
+        ({"epsilon": float("nan")}, "epsilon"),
+        ({"lamda": 0.9}, "unknown parameter 'lamda'"),
+        ({"Theta-Max": 0.5}, "did you mean 'theta_max'"),
+    ],
+)
+def test_bad_values_name_the_key(change: dict[str, object], match: str) -> None:
+    with pytest.raises(ConfigError, match=match):
+        RunConfig.from_mapping(change)
+
+
+def test_toml_file_then_flags(tmp_path: Path) -> None:
+    path = tmp_path / "run.toml"
+    path.write_text('method = "no-vp"\nL = 4\nnoise = 0.05\nradius = 1\n')
+    c = RunConfig.from_toml(path)
+    assert (c.method, c.L, c.noise, c.radius) == ("no-vp", 4, 0.05, 1.0)
+    args = build_parser().parse_args(
+        ["run", "--config", str(path), "--method", "vgn", "--set", "L=2", "--set", "sigma=0"]
+    )
+    c = config_from_args(args)
+    assert (c.method, c.L, c.noise, c.sigma) == ("vgn", 2, 0.05, 0.0)
+
+
+def test_bad_files_are_reported(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="not found"):
+        RunConfig.from_toml(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("L = \n")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        RunConfig.from_toml(bad)
+    wrong = tmp_path / "wrong.toml"
+    wrong.write_text('L = "three"\n')
+    with pytest.raises(ConfigError, match=r"wrong.toml: L must be of type int"):
+        RunConfig.from_toml(wrong)
+
+
+def test_cli_reports_bad_config_with_status_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["run", "--set", "gamma2=-1", "--out", str(tmp_path / "r")]) == 2
+    assert "gamma2: must be in" in capsys.readouterr().err
+    assert main(["run", "--set", "nonsense", "--out", str(tmp_path / "r")]) == 2
+    assert "KEY=VALUE" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists(), "nothing is written for a bad configuration"
+    assert main(["run", "--print-config", "--objects", "7"]) == 0
+    assert '"objects": 7' in capsys.readouterr().out
