@@ -1,0 +1,86 @@
+"""View planning: the eq. 14 oracle and the fixed-view baselines."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from heapgrasp import MeshScene, OccupancyGrid
+from heapgrasp.sim.camera import CameraSpec
+from heapgrasp.sim.motion import ViewSphere, interpolate
+from heapgrasp.viewplan import OracleViewScorer, ViewContext, fixed_waypoints, subsample_path
+from reference import box_mesh
+
+
+@pytest.fixture
+def scene() -> MeshScene:
+    s = MeshScene()
+    v, f = box_mesh((0.03, 0.05, 0.04))
+    pose = np.eye(4)
+    pose[:3, 3] = (0.15, 0.15, 0.04)
+    s.add_mesh(v, f, pose)
+    return s
+
+
+def test_oracle_prefers_the_unseen_side_to_a_repeated_view(scene: MeshScene) -> None:
+    sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.30)
+    camera = CameraSpec.continuous()
+    seen = sphere.pose(0.0, math.pi / 5)
+    grid = OccupancyGrid((0.0, 0.0, 0.0), 0.30, 40)
+    # Everything captured so far: the path from the top to the seen waypoint.
+    for pose in interpolate(sphere.pose(0.0, 0.0), seen, sphere, step=0.02):
+        grid.integrate(scene.render_mask(camera.core(), pose), camera.core(), pose)
+    assert grid.count_high_confidence(0.9) > 0
+    candidates = np.stack([seen, sphere.pose(math.pi, math.pi / 5), sphere.pose(0.5, 0.3)])
+    ctx = ViewContext(grid, seen, candidates[:, None], sphere, camera, 0.9, scene)
+    s = OracleViewScorer(frames_per_candidate=6).scores(ctx)
+    assert s.shape == (3, 1)
+    # Re-observing the last view only lowers voxels seen inconsistently along the path.
+    assert 0.0 <= s[0, 0] < 0.05
+    assert s[1, 0] > 0.2, "the far side carves much of the hull away"
+    assert s[1, 0] > s[2, 0] >= 0.0
+
+
+def test_oracle_scores_the_full_candidate_set_with_one_top_column(scene: MeshScene) -> None:
+    sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.30)
+    camera = CameraSpec.continuous()
+    start = sphere.pose(0.0, 0.0)
+    grid = OccupancyGrid((0.0, 0.0, 0.0), 0.30, 40)
+    grid.integrate(scene.render_mask(camera.core(), start), camera.core(), start)
+    cands = sphere.candidates(8, 4, math.pi / 5)
+    ctx = ViewContext(grid, start, cands, sphere, camera, 0.9, scene)
+    s = OracleViewScorer(frames_per_candidate=3).scores(ctx)
+    assert s.shape == (8, 4) and s.dtype == np.float32
+    assert np.all(s[:, 0] == s[0, 0]), "theta = 0 candidates coincide"
+    assert s[0, 0] == pytest.approx(0.0, abs=1e-6), "the top is where the camera is"
+    assert s[:, 1:].min() > 0.0
+    with pytest.raises(ValueError, match="true meshes"):
+        OracleViewScorer().scores(ViewContext(grid, start, cands, sphere, camera, 0.9, None))
+    with pytest.raises(ValueError, match="frames_per_candidate"):
+        OracleViewScorer(frames_per_candidate=0)
+
+
+def test_subsample_path_keeps_the_end_and_drops_the_start() -> None:
+    sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.30)
+    path = interpolate(sphere.pose(0.0, 0.0), sphere.pose(1.0, 0.5), sphere, step=0.005)
+    sub = subsample_path(path, 5)
+    assert len(sub) == 5
+    np.testing.assert_array_equal(sub[-1], path[-1])
+    assert not np.array_equal(sub[0], path[0])
+    assert len(subsample_path(path[:1], 5)) == 1
+
+
+def test_fixed_waypoints() -> None:
+    sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.30)
+    circle = fixed_waypoints("circle", sphere, L=3)
+    assert circle.shape == (3, 4, 4)
+    np.testing.assert_allclose(
+        np.linalg.norm(circle[:, :3, 3] - sphere.center_array, axis=1), sphere.radius
+    )
+    h6 = fixed_waypoints("hemisphere6", sphere, rng=np.random.default_rng(1))
+    assert h6.shape == (6, 4, 4)
+    np.testing.assert_allclose(np.linalg.norm(h6[:, :3, 3] - sphere.target_array, axis=1), 0.5)
+    np.testing.assert_allclose(h6[:, 2, 3], sphere.target[2] + 0.5 * math.cos(math.pi / 6))
+    with pytest.raises(ValueError, match="kind"):
+        fixed_waypoints("spiral", sphere)
