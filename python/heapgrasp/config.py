@@ -78,6 +78,9 @@ class RunConfig:
     # -- perception
     noise: float = 0.0
     """Probability that each mask pixel is flipped (Table V)."""
+    ideal_depth: bool = False
+    """Give the VGN baseline ideal depth (the paper's simulation, Table II) instead of the
+    per-category sensor model (transparent / specular failures, Table III)."""
     cube_size: float = 0.30
     """Side l of the scene cube (m)."""
     resolution: int = 40

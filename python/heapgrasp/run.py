@@ -70,6 +70,7 @@ def run_scene(
     protocol and returns its record (phases with metrics, stop reason, timings)."""
     from heapgrasp.pipeline import build_pipeline
     from heapgrasp.sim.objects import ObjectLibrary
+    from heapgrasp.sim.optics import DepthModel
     from heapgrasp.sim.protocol import run_clutter_removal
     from heapgrasp.sim.world import SimWorld, WorldConfig
 
@@ -78,7 +79,11 @@ def run_scene(
     group = category or config.category
     library = ObjectLibrary.default()
     with SimWorld(
-        library, config=WorldConfig(cube_size=config.cube_size), gui=gui, seed=seed
+        library,
+        config=WorldConfig(cube_size=config.cube_size),
+        depth_model=DepthModel(ideal=config.ideal_depth),
+        gui=gui,
+        seed=seed,
     ) as world:
         world.reset(
             layout=config.layout,  # type: ignore[arg-type]

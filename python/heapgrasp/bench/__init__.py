@@ -6,7 +6,9 @@ its subcommand (and sets ``func``, the function that runs it, as a parser defaul
 * :mod:`heapgrasp.bench.carve` -- ``heapgrasp bench carve``: Shape-from-Silhouette
   carving, the Rust kernel against NumPy, numba and Open3D;
 * :mod:`heapgrasp.bench.world` -- ``heapgrasp bench world``: ground-truth masks vs
-  PyBullet rendering, seconds per simulated grasp phase.
+  PyBullet rendering, seconds per simulated grasp phase;
+* :mod:`heapgrasp.bench.sim` -- ``heapgrasp bench sim``: the closed loop of HEAPGrasp and
+  its baselines on seed 000's protocol (Tables II/III, Fig. 4/5).
 
 Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`.
 """
@@ -15,7 +17,7 @@ from __future__ import annotations
 
 import argparse
 
-from heapgrasp.bench import carve, world
+from heapgrasp.bench import carve, sim, world
 
 __all__ = ["add_parser"]
 
@@ -46,4 +48,5 @@ def add_parser(
     )
     carve.add_parser(benches)
     world.add_parser(benches)
+    sim.add_parser(benches)
     return p

@@ -1,0 +1,117 @@
+"""Figures of the simulated runs (matplotlib, Agg backend).
+
+* :func:`figure_paths` — Fig. 5 of HEAPGrasp: hand-eye camera paths in the x–y plane,
+  the scene boundary dashed, the initial position a square, the grasp a cross;
+* :func:`figure_grids` — Fig. 4: the measured grid of one phase per method, with its
+  grasp candidates (green) and the chosen grasp (red).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from heapgrasp.config import RunConfig
+
+__all__ = ["figure_grids", "figure_paths"]
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def figure_paths(
+    summaries: dict[str, dict[str, Any]], path: Path, *, scene: int = 0, phase: int = 0
+) -> None:
+    """Camera paths (x–y) of one phase of one scene for every method (Fig. 5)."""
+    plt = _pyplot()
+    n = len(summaries)
+    fig, axes = plt.subplots(1, n, figsize=(4 * n, 4), squeeze=False)
+    for ax, (method, s) in zip(axes[0], summaries.items(), strict=True):
+        size = float(s["config"]["cube_size"])
+        ax.plot([0, size, size, 0, 0], [0, 0, size, size, 0], "k--", lw=1)
+        rec = next(
+            (p for p in s["phases"] if p["scene"] == scene and p["phase"] == phase),
+            None,
+        )
+        if rec is not None and rec["camera_path"]:
+            xy = np.asarray(rec["camera_path"])[:, :2]
+            ax.plot(xy[:, 0], xy[:, 1], "-", color="tab:blue", lw=1.5)
+            ax.plot(xy[0, 0], xy[0, 1], "s", color="tab:blue", ms=8)
+            if rec.get("grasp_position") is not None:
+                g = rec["grasp_position"]
+                ax.plot(g[0], g[1], "x", color="tab:red", ms=10, mew=2)
+            length = rec.get("trajectory_length_m", 0.0)
+            ax.set_title(f"{method}: {length:.2f} m ({rec['outcome']})")
+        else:
+            ax.set_title(f"{method}: no phase")
+        ax.set_aspect("equal")
+        ax.set_xlim(-0.3, size + 0.3)
+        ax.set_ylim(-0.3, size + 0.3)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def figure_grids(base: RunConfig, methods: Sequence[str], path: Path, *, scene: int = 0) -> None:
+    """The measured grid after the first phase's views of ``scene`` per method (Fig. 4),
+    re-running that phase in-process."""
+    from heapgrasp.pipeline import build_pipeline
+    from heapgrasp.sim.objects import ObjectLibrary
+    from heapgrasp.sim.optics import DepthModel
+    from heapgrasp.sim.world import SimWorld, WorldConfig
+
+    plt = _pyplot()
+    fig = plt.figure(figsize=(4.5 * len(methods), 4.5))
+    library = ObjectLibrary.default()
+    group = ("transparent", "opaque", "specular", "mixed")[min(3, (4 * scene) // base.scenes)]
+    for k, method in enumerate(methods):
+        config = base.replace({"method": method})
+        seed = config.seed + scene
+        ax = fig.add_subplot(1, len(methods), k + 1, projection="3d")
+        with SimWorld(
+            library,
+            config=WorldConfig(cube_size=config.cube_size),
+            depth_model=DepthModel(ideal=config.ideal_depth),
+            seed=seed,
+        ) as world:
+            world.reset(
+                layout=config.layout,  # type: ignore[arg-type]
+                n_objects=config.objects,
+                category=group,
+                seed=seed,
+                split=config.split,  # type: ignore[arg-type]
+            )
+            pipeline = build_pipeline(config, world, seed=seed)
+            planned = pipeline.plan()
+            grid = pipeline.perception.grasp_input()
+            cands = pipeline.grasp_candidates()
+        occ = np.argwhere(grid > 0)
+        centres = pipeline.frame.centers(occ)
+        ax.scatter(*centres.T, s=2, c=centres[:, 2], cmap="viridis", alpha=0.4)
+        if cands:
+            cp = np.stack([c.position for c in cands])
+            ax.scatter(*cp.T, s=25, c="tab:green", depthshade=False)
+        if planned.grasp is not None:
+            g = planned.grasp.pose
+            ax.scatter(*g[:3, 3], s=60, c="tab:red", depthshade=False)
+            tip = g[:3, 3] - 0.05 * g[:3, 2]
+            ax.plot(*np.stack([tip, g[:3, 3]]).T, c="tab:red", lw=2)
+        size = config.cube_size
+        ax.set_xlim(0, size)
+        ax.set_ylim(0, size)
+        ax.set_zlim(0, size)
+        ax.set_title(f"{method} ({group}): {len(occ)} voxels, {len(cands)} grasps")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
