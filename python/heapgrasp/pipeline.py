@@ -334,7 +334,7 @@ def make_grasp_planner(config: RunConfig) -> GraspPlanner:
 
     planner = NetworkGraspPlanner(_weights(config.grasp_weights, "grasp", "grasp_weights"))
     if config.method == "vgn":
-        planner.input_kind = "tsdf"  # type: ignore[attr-defined]
+        planner.input_kind = "tsdf"
     return planner
 
 

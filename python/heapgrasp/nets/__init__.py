@@ -1,0 +1,53 @@
+"""The learned parts of HEAPGrasp §IV-B (needs PyTorch: ``pip install heapgrasp[nets]``).
+
+* :class:`GraspNet` — encoder-decoder 3-D CNN predicting per-voxel grasp quality,
+  orientation and width (eq. 11, VGN architecture);
+* :class:`ViewNet` — the same 3-D encoder, z-compression and 2-D decoder predicting the
+  ``U × V`` view scores of eq. 13;
+* :func:`save_weights`, :func:`load_grasp_net`, :func:`load_view_net` — weights files with
+  their architecture and provenance.
+
+The planners that use them, :class:`heapgrasp.grasping.network.NetworkGraspPlanner` and
+:class:`heapgrasp.viewplan_network.NetworkViewScorer`, import this package lazily, so the
+rest of ``heapgrasp`` never needs PyTorch.
+"""
+
+from __future__ import annotations
+
+try:
+    import torch as _torch  # noqa: F401
+except ImportError as _exc:  # pragma: no cover - exercised by a sys.modules patch in tests
+    raise ImportError(
+        "heapgrasp.nets needs PyTorch, which is not installed: install heapgrasp[nets] "
+        "(PyTorch), e.g. `pip install 'heapgrasp[nets]'` or `pip install torch`"
+    ) from _exc
+
+from heapgrasp.nets.models import (
+    DEFAULT_RESOLUTION,
+    DEFAULT_VIEW_SHAPE,
+    Encoder3d,
+    GraspNet,
+    ViewNet,
+)
+from heapgrasp.nets.weights import (
+    default_weights_dir,
+    find_default,
+    load_grasp_net,
+    load_view_net,
+    read_metadata,
+    save_weights,
+)
+
+__all__ = [
+    "DEFAULT_RESOLUTION",
+    "DEFAULT_VIEW_SHAPE",
+    "Encoder3d",
+    "GraspNet",
+    "ViewNet",
+    "default_weights_dir",
+    "find_default",
+    "load_grasp_net",
+    "load_view_net",
+    "read_metadata",
+    "save_weights",
+]
