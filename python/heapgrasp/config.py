@@ -90,8 +90,9 @@ class RunConfig:
     # -- grasp selection (eq. 15-17)
     epsilon: float = 0.8
     """Grasp score threshold ε."""
-    sigma: float = 1.0
-    """Gaussian smoothing of the grasp scores (voxels)."""
+    sigma: float | None = None
+    """Gaussian smoothing of the grasp scores (voxels); None = the grasp planner's own
+    recommendation (1.0 for the VGN network, as VGN; see the analytic planner)."""
     nms_window: int = 4
     gamma1: float = 0.2
     """Weight of the orientation term of dist (eq. 17)."""
@@ -165,8 +166,10 @@ class RunConfig:
         between("initial_theta", 0.0, math.pi / 2)
         between("circle_theta", 0.0, math.pi / 2)
         between("hemisphere_theta", 0.0, math.pi / 2)
-        for name in ("gamma1", "gamma2", "gamma2_first", "sigma"):
+        for name in ("gamma1", "gamma2", "gamma2_first"):
             between(name, 0.0, 100.0)
+        if self.sigma is not None:
+            between("sigma", 0.0, 100.0)
         between("initial_phi", -4 * math.pi, 4 * math.pi)
         for name in (
             "cube_size",
@@ -227,6 +230,8 @@ class RunConfig:
                 and isinstance(value, int)
                 and not isinstance(value, bool)
             ):
+                value = float(value)
+            if key == "sigma" and isinstance(value, int) and not isinstance(value, bool):
                 value = float(value)
             if default is not None and not isinstance(value, type(default)):
                 raise ConfigError(

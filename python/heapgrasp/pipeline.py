@@ -156,8 +156,9 @@ class Pipeline:
         else:
             grid = self.perception.grasp_input()
         volumes = self.grasp_planner.predict(grid, self.frame)
+        sigma = cfg.sigma if cfg.sigma is not None else getattr(self.grasp_planner, "sigma", 1.0)
         return select_candidates(
-            volumes, epsilon=cfg.epsilon, sigma=cfg.sigma, nms_window=cfg.nms_window
+            volumes, epsilon=cfg.epsilon, sigma=float(sigma), nms_window=cfg.nms_window
         )
 
     def _move(self, start: F64, goal: F64) -> tuple[Capture, float, float]:
