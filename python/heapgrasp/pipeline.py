@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from heapgrasp import HeapgraspError
 from heapgrasp.config import ConfigError, RunConfig
 from heapgrasp.grasping.volumes import (
     GraspCandidate,
@@ -112,6 +113,8 @@ class Pipeline:
             )
             self.perception = SilhouettePerception(self.frame, self.segmenter, cfg.lam)
         self.adaptive = cfg.method == "heapgrasp" and cfg.view_planner in ("oracle", "network")
+        self.joint_path_errors = 0
+        self.unreachable_waypoints = 0
         if self.adaptive and self.view_scorer is None:
             raise ConfigError(f"view_planner {cfg.view_planner!r} needs a view scorer")
 
@@ -161,9 +164,25 @@ class Pipeline:
             volumes, epsilon=cfg.epsilon, sigma=float(sigma), nms_window=cfg.nms_window
         )
 
-    def _move(self, start: F64, goal: F64) -> tuple[Capture, float, float]:
+    def _move(self, start: F64, goal: F64) -> tuple[Capture, float, float] | None:
+        """Moves the camera to ``goal`` capturing; None if the arm cannot get there."""
         (path,) = plan_waypoints(start, [goal], self.sphere, self.limits, self.config.fps)
-        cap = self.world.follow(path, self.camera, mount=self.robot, depth=self.uses_depth)
+        if self.config.mount == "arm":
+            from heapgrasp.sim.arm import JointPathError, PandaArm, retime_for_arm
+
+            if isinstance(self.robot, PandaArm):
+                try:  # slow down until the joint limits hold
+                    path = retime_for_arm(path, self.robot)
+                except JointPathError:
+                    self.joint_path_errors += 1  # followed kinematically, Cartesian timing
+        clock = self.world.time
+        try:
+            cap = self.world.follow(path, self.camera, mount=self.robot, depth=self.uses_depth)
+        except HeapgraspError:  # the arm's UnreachableError: skip this waypoint
+            self.world.time = clock
+            self.unreachable_waypoints += 1
+            self.robot.move_camera(start)
+            return None
         return cap, path.duration, self._perceive(cap.frames[1:])
 
     def _object_near(self, point: F64) -> int | None:
@@ -182,6 +201,8 @@ class Pipeline:
         cfg = self.config
         self.robot.park()
         self.perception.reset()
+        self.joint_path_errors = 0
+        self.unreachable_waypoints = 0
         compute = 0.0
         motion = 0.0
         current = self.initial_pose()
@@ -222,7 +243,10 @@ class Pipeline:
                 t3 = time.perf_counter()
                 compute += t3 - t0
                 goal = self.candidates[u, v]
-                cap, duration, carve = self._move(current, goal)
+                moved = self._move(current, goal)
+                if moved is None:
+                    continue
+                cap, duration, carve = moved
                 compute += carve
                 motion += duration
                 positions.extend(cap.positions[1:])
@@ -245,7 +269,10 @@ class Pipeline:
                 )
         else:
             for goal in self.fixed_waypoints():
-                cap, duration, carve = self._move(current, goal)
+                moved = self._move(current, goal)
+                if moved is None:
+                    continue
+                cap, duration, carve = moved
                 compute += carve
                 motion += duration
                 positions.extend(cap.positions[1:])
@@ -270,6 +297,8 @@ class Pipeline:
             "frames": self.perception.frames_seen,
             "final_candidates": len(cands),
             "final_planning_s": final_latency,
+            "joint_path_errors": self.joint_path_errors,
+            "unreachable_waypoints": self.unreachable_waypoints,
             "target_grasp": _candidate_record(chosen),
         }
         if chosen is None:
@@ -353,9 +382,11 @@ def make_view_scorer(config: RunConfig) -> ViewScorer | None:
 def make_robot(config: RunConfig, world: SimWorld) -> Robot:
     """The free-flying hand or the Panda arm (``config.mount``)."""
     if config.mount == "arm":
-        from heapgrasp.sim.arm import PandaArm
+        from heapgrasp.sim.arm import ArmConfig, PandaArm
 
-        return PandaArm(world)
+        # The arm picks the camera roll about the viewing axis: paths leaving the top of
+        # the view sphere would otherwise spin the wrist past its limits.
+        return PandaArm(world, ArmConfig(camera_roll="free"))
     from heapgrasp.sim.gripper import PandaHand
 
     return PandaHand(world)

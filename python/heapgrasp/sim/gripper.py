@@ -117,6 +117,8 @@ class GraspOutcome(StrEnum):
     """The hand touched something at the pre-grasp pose or while approaching."""
     EMPTY = "empty"
     """The fingers closed on nothing, or dropped the object while lifting or shaking."""
+    UNREACHABLE = "unreachable"
+    """The arm cannot reach the pre-grasp or grasp pose (arm mode only)."""
 
 
 @dataclass(frozen=True)
@@ -314,9 +316,15 @@ def execute_grasp(
     ``lift_height`` along world z, optionally shakes (±20° about the approach axis),
     and succeeds if both fingers still touch one object and are not shut.
     """
+    from heapgrasp import HeapgraspError
+
     t0 = hand.time
     pre = grasp.pose @ translate(0.0, 0.0, -pregrasp_distance)
-    hand.reset(pre, min(MAX_OPENING, grasp.width + 0.01))
+    try:
+        hand.reset(pre, min(MAX_OPENING, grasp.width + 0.01))
+    except HeapgraspError:  # the arm's UnreachableError: an attempt that fails
+        hand.park()
+        return GraspResult(GraspOutcome.UNREACHABLE, None, hand.time - t0)
     hand.step(2)
     if hand.contacts():
         hand.park()
