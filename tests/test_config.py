@@ -14,7 +14,8 @@ from heapgrasp.run_cli import config_from_args
 def test_defaults_are_table_one() -> None:
     c = RunConfig()
     assert (c.cube_size, c.resolution, c.radius, c.theta_max) == (0.30, 40, 0.33, math.pi / 5)
-    assert (c.U, c.V, c.L, c.lam, c.epsilon, c.gamma1) == (40, 20, 3, 0.9, 0.8, 0.2)
+    assert (c.U, c.V, c.L, c.lam, c.gamma1) == (40, 20, 3, 0.9, 0.2)
+    assert c.epsilon is None and c.sigma is None  # the grasp planner's own (0.8 for VGN)
     assert (c.gamma2_first, c.gamma2, c.objects) == (0.0, 0.35, 5)
 
 

@@ -23,7 +23,10 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from heapgrasp.sim.objects import ObjectLibrary
 
 __all__ = [
     "CATEGORIES",
@@ -31,9 +34,11 @@ __all__ = [
     "LAYOUTS",
     "METHODS",
     "MOUNTS",
+    "OBJECT_SETS",
     "VIEW_PLANNERS",
     "ConfigError",
     "RunConfig",
+    "object_library",
 ]
 
 #: ``--method`` values: the proposed method and the baselines of HEAPGrasp §VI-B.
@@ -45,6 +50,7 @@ GRASP_PLANNERS = ("antipodal", "network")
 LAYOUTS = ("pile", "packed")
 CATEGORIES = ("transparent", "specular", "opaque", "mixed")
 MOUNTS = ("free", "arm")
+OBJECT_SETS = ("procedural", "all")
 
 
 class ConfigError(ValueError):
@@ -75,6 +81,10 @@ class RunConfig:
     scenes: int = 1
     seed: int = 0
     split: str = "test"
+    object_set: str = "procedural"
+    """``procedural``: boxes, cylinders, bottles, cups and bowls sized for the 8 cm
+    gripper (the benchmark's set); ``all``: also pybullet_data's random_urdfs (~9 cm
+    blobs, many too wide for the gripper) and the mug."""
     # -- perception
     noise: float = 0.0
     """Probability that each mask pixel is flipped (Table V)."""
@@ -88,8 +98,9 @@ class RunConfig:
     lam: float = 0.9
     """Occupancy threshold λ of the high-confidence grid."""
     # -- grasp selection (eq. 15-17)
-    epsilon: float = 0.8
-    """Grasp score threshold ε."""
+    epsilon: float | None = None
+    """Grasp score threshold ε; None = the grasp planner's own (Table I's 0.8 for the VGN
+    network; the analytic planner's scores have another scale, see its docs)."""
     sigma: float | None = None
     """Gaussian smoothing of the grasp scores (voxels); None = the grasp planner's own
     recommendation (1.0 for the VGN network, as VGN; see the analytic planner)."""
@@ -141,6 +152,7 @@ class RunConfig:
         choice("layout", LAYOUTS)
         choice("category", CATEGORIES)
         choice("split", ("train", "test"))
+        choice("object_set", OBJECT_SETS)
         choice("camera", ("continuous", "still"))
         choice("mount", MOUNTS)
 
@@ -159,8 +171,9 @@ class RunConfig:
             if not (isinstance(value, int) and not isinstance(value, bool) and value >= lo):
                 raise ConfigError(f"{name}: must be an integer >= {lo}; got {value!r}")
 
-        for name in ("lam", "epsilon", "noise"):
-            between(name, 0.0, 1.0)
+        between("lam", 0.0, 1.0)
+        if self.epsilon is not None:
+            between("epsilon", 0.0, 1.0)
         between("noise", 0.0, 0.5)
         between("theta_max", 0.0, math.pi / 2)
         between("initial_theta", 0.0, math.pi / 2)
@@ -231,7 +244,11 @@ class RunConfig:
                 and not isinstance(value, bool)
             ):
                 value = float(value)
-            if key == "sigma" and isinstance(value, int) and not isinstance(value, bool):
+            if (
+                key in ("sigma", "epsilon")
+                and isinstance(value, int)
+                and not isinstance(value, bool)
+            ):
                 value = float(value)
             if default is not None and not isinstance(value, type(default)):
                 raise ConfigError(
@@ -246,3 +263,12 @@ class RunConfig:
     def to_dict(self) -> dict[str, Any]:
         """All parameters as plain data (JSON/TOML-ready)."""
         return dataclasses.asdict(self)
+
+
+def object_library(config: RunConfig) -> ObjectLibrary:
+    """The object library of ``config.object_set`` (generated once into the cache)."""
+    from heapgrasp.sim.objects import ObjectLibrary
+
+    if config.object_set == "procedural":
+        return ObjectLibrary.default(random_urdfs=0, mug=False, procedural_per_kind=16)
+    return ObjectLibrary.default()

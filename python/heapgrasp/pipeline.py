@@ -160,8 +160,11 @@ class Pipeline:
             grid = self.perception.grasp_input()
         volumes = self.grasp_planner.predict(grid, self.frame)
         sigma = cfg.sigma if cfg.sigma is not None else getattr(self.grasp_planner, "sigma", 1.0)
+        eps = (
+            cfg.epsilon if cfg.epsilon is not None else getattr(self.grasp_planner, "epsilon", 0.8)
+        )
         return select_candidates(
-            volumes, epsilon=cfg.epsilon, sigma=float(sigma), nms_window=cfg.nms_window
+            volumes, epsilon=float(eps), sigma=float(sigma), nms_window=cfg.nms_window
         )
 
     def _move(self, start: F64, goal: F64) -> tuple[Capture, float, float] | None:
@@ -217,7 +220,8 @@ class Pipeline:
             for ell in range(cfg.L):
                 t0 = time.perf_counter()
                 cands = self.grasp_candidates()
-                target = select_target(cands, target, cfg.gamma1) or target
+                # No candidate at this waypoint: no target, and eq. 18 uses s alone.
+                target = select_target(cands, target, cfg.gamma1)
                 t1 = time.perf_counter()
                 assert isinstance(self.perception, SilhouettePerception)
                 ctx = ViewContext(

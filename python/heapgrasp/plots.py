@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from heapgrasp.config import RunConfig
+from heapgrasp.config import RunConfig, object_library
 
 __all__ = ["figure_grids", "figure_paths"]
 
@@ -67,13 +67,12 @@ def figure_grids(base: RunConfig, methods: Sequence[str], path: Path, *, scene: 
     """The measured grid after the first phase's views of ``scene`` per method (Fig. 4),
     re-running that phase in-process."""
     from heapgrasp.pipeline import build_pipeline
-    from heapgrasp.sim.objects import ObjectLibrary
     from heapgrasp.sim.optics import DepthModel
     from heapgrasp.sim.world import SimWorld, WorldConfig
 
     plt = _pyplot()
     fig = plt.figure(figsize=(4.5 * len(methods), 4.5))
-    library = ObjectLibrary.default()
+    library = object_library(base)
     group = ("transparent", "opaque", "specular", "mixed")[min(3, (4 * scene) // base.scenes)]
     for k, method in enumerate(methods):
         config = base.replace({"method": method})

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from heapgrasp.config import ConfigError, RunConfig
+from heapgrasp.config import ConfigError, RunConfig, object_library
 from heapgrasp.sim.metrics import Phase, aggregate
 
 __all__ = [
@@ -69,7 +69,6 @@ def run_scene(
     """Runs scene ``index`` (seed ``config.seed + index``) to the end of the clutter-removal
     protocol and returns its record (phases with metrics, stop reason, timings)."""
     from heapgrasp.pipeline import build_pipeline
-    from heapgrasp.sim.objects import ObjectLibrary
     from heapgrasp.sim.optics import DepthModel
     from heapgrasp.sim.protocol import run_clutter_removal
     from heapgrasp.sim.world import SimWorld, WorldConfig
@@ -77,7 +76,7 @@ def run_scene(
     t0 = time.perf_counter()
     seed = config.seed + index
     group = category or config.category
-    library = ObjectLibrary.default()
+    library = object_library(config)
     with SimWorld(
         library,
         config=WorldConfig(cube_size=config.cube_size),
