@@ -25,7 +25,7 @@ from heapgrasp.config import (
     RunConfig,
 )
 
-__all__ = ["add_parser", "config_from_args", "run_command"]
+__all__ = ["add_parser", "apply_sets", "config_from_args", "run_command"]
 
 _FLAGS = {
     "method": "method",
@@ -110,18 +110,24 @@ def _parse_value(text: str) -> Any:
         return text
 
 
-def config_from_args(args: argparse.Namespace) -> RunConfig:
-    """The :class:`RunConfig` of parsed ``heapgrasp run`` arguments."""
-    config = RunConfig.from_toml(args.config) if args.config is not None else RunConfig()
-    flags = {field: getattr(args, dest) for dest, field in _FLAGS.items()}
-    config = config.replace(flags, source="command line")
+def apply_sets(config: RunConfig, items: list[str]) -> RunConfig:
+    """``config`` with ``--set KEY=VALUE`` items applied (VALUE parsed as JSON, else a
+    string)."""
     extra: dict[str, Any] = {}
-    for item in args.set:
+    for item in items:
         key, sep, value = item.partition("=")
         if not sep:
             raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
         extra[key.strip()] = _parse_value(value.strip())
     return config.replace(extra, source="--set")
+
+
+def config_from_args(args: argparse.Namespace) -> RunConfig:
+    """The :class:`RunConfig` of parsed ``heapgrasp run`` arguments."""
+    config = RunConfig.from_toml(args.config) if args.config is not None else RunConfig()
+    flags = {field: getattr(args, dest) for dest, field in _FLAGS.items()}
+    config = config.replace(flags, source="command line")
+    return apply_sets(config, args.set)
 
 
 def run_command(args: argparse.Namespace) -> int:

@@ -86,7 +86,7 @@ def add_parser(
 
 
 def _base_config(args: argparse.Namespace) -> RunConfig:
-    from heapgrasp.run_cli import _parse_value
+    from heapgrasp.run_cli import apply_sets
 
     base = RunConfig.from_toml(args.config) if args.config is not None else RunConfig()
     base = base.replace(
@@ -98,13 +98,7 @@ def _base_config(args: argparse.Namespace) -> RunConfig:
         },
         source="command line",
     )
-    extra: dict[str, Any] = {}
-    for item in args.set:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
-        extra[key.strip()] = _parse_value(value.strip())
-    return base.replace(extra, source="--set")
+    return apply_sets(base, args.set)
 
 
 def run_bench(

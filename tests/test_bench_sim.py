@@ -1,0 +1,33 @@
+"""heapgrasp bench sim: scene groups, argument errors, the table from real runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from heapgrasp.bench.sim import markdown_tables, run_bench, scene_groups
+from heapgrasp.cli import main
+from heapgrasp.config import ConfigError, RunConfig
+
+
+def test_scene_groups_are_four_equal_blocks() -> None:
+    groups = scene_groups(20)
+    assert [groups.count(g) for g in ("transparent", "opaque", "specular", "mixed")] == [5] * 4
+    assert groups[:5] == ["transparent"] * 5 and groups[-1] == "mixed"
+    assert scene_groups(1) == ["transparent"]
+
+
+def test_unknown_methods_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(ConfigError, match="magic"):
+        run_bench(RunConfig(), ["no-vp", "magic"], tmp_path / "b")
+    assert main(["bench", "sim", "--methods", "magic", "--out", str(tmp_path / "c")]) == 2
+    assert "magic" in capsys.readouterr().err
+
+
+def test_tables_from_a_small_run(tmp_path: Path) -> None:
+    base = RunConfig(scenes=1, objects=2, layout="packed", max_attempts=2)
+    summaries = run_bench(base, ["no-vp"], tmp_path, progress=False, figures=False)
+    text = (tmp_path / "table.md").read_text()
+    assert text == markdown_tables(summaries, base)
+    assert "| no-vp (antipodal grasps) |" in text and "92.7 (458/494)" in text
+    assert (tmp_path / "no-vp" / "results.json").exists()
