@@ -450,9 +450,8 @@ def test_no_torch_import_at_package_import_and_clear_error():
         print("ok")
         """
     )
+    # The same heapgrasp as this test session (installed in CI, or PYTHONPATH).
     env = dict(os.environ)
-    root = Path(__file__).resolve().parents[1]
-    env["PYTHONPATH"] = os.pathsep.join([str(root / "python"), env.get("PYTHONPATH", "")])
     res = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60
     )
