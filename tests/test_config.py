@@ -27,6 +27,7 @@ def test_defaults_are_table_one() -> None:
         ({"L": 0}, "L: must be an integer >= 1; got 0"),
         ({"objects": 2.5}, "objects must be of type int"),
         ({"radius": -0.3}, "radius: must be > 0"),
+        ({"initial_radius": 0.0}, "initial_radius: must be > 0"),
         ({"noise": 0.7}, "noise: must be in"),
         ({"epsilon": float("nan")}, "epsilon"),
         ({"lamda": 0.9}, "unknown parameter 'lamda'"),

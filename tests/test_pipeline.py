@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 from heapgrasp.config import ConfigError, RunConfig
+from heapgrasp.grasping.volumes import GraspCandidate
 from heapgrasp.pipeline import build_pipeline
 from heapgrasp.run import RESULTS_FILE, SCENES_FILE, RunExistsError, load_records, run
 from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
@@ -67,6 +68,61 @@ def test_transparent_object_is_invisible_to_the_depth_baseline(tmp_path: Path) -
         # Silhouettes see it.
         sfs = build_pipeline(config.replace({"method": "no-vp"}), world)
         assert sfs.plan().grasp is not None
+
+
+def test_a_phase_starts_beside_the_scene_looking_at_it(tmp_path: Path) -> None:
+    model = box_model(tmp_path)
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        pipeline = build_pipeline(RunConfig(method="no-vp"), world)
+        p0 = pipeline.initial_pose()
+        centre = pipeline.sphere.center_array
+        eye = p0[:3, 3]
+        assert np.linalg.norm(eye - centre) == pytest.approx(0.5)
+        assert eye[1] < centre[1] - 0.3  # the bin's side (-y)
+        to_target = pipeline.sphere.target_array - eye
+        assert np.dot(p0[:3, 2], to_target / np.linalg.norm(to_target)) == pytest.approx(1.0)
+        top = build_pipeline(
+            RunConfig(method="no-vp", initial_radius=0.33, initial_theta=0.0), world
+        ).initial_pose()
+        np.testing.assert_allclose(top, pipeline.sphere.pose(0.0, 0.0), atol=1e-12)
+
+
+class _ScriptedViews:
+    """A view scorer that prefers nothing (all zeros)."""
+
+    name = "flat"
+
+    def scores(self, ctx: Any) -> Any:
+        return np.zeros(ctx.candidates.shape[:2], dtype=np.float32)
+
+
+def _candidate(x: float, score: float) -> GraspCandidate:
+    pose = np.eye(4)
+    pose[:3, 3] = (x, 0.15, 0.05)
+    return GraspCandidate(pose, 0.05, score, (0, 0, 0))
+
+
+def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path) -> None:
+    # Eq. 16 keeps the grasp closest to the previous target, but the target planned at
+    # p0 (gamma2 = 0, §VI-B: unreliable) must not anchor it: at the second waypoint the
+    # top-scoring grasp wins, and from then on the closest one.
+    model = box_model(tmp_path)
+    script = [
+        [_candidate(0.05, 0.9)],  # at p0
+        [_candidate(0.06, 0.5), _candidate(0.25, 0.95)],  # near p0's target / best
+        [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],  # best / near the last target
+        [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],  # final
+    ]
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        pipeline = build_pipeline(RunConfig(), world, view_scorer=_ScriptedViews())
+        calls = iter(script)
+        pipeline.grasp_candidates = lambda: next(calls)  # type: ignore[method-assign]
+        result = pipeline.plan()
+    targets = [w["target"]["position"][0] for w in result.extra["waypoints"]]
+    assert targets == pytest.approx([0.05, 0.25, 0.24])
+    assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.24)
 
 
 def _interrupt_after(n: int) -> Any:

@@ -119,9 +119,19 @@ class RunConfig:
     """γ2 of eq. 18 for the first view waypoint."""
     gamma2: float = 0.35
     """γ2 of eq. 18 for the following view waypoints."""
-    initial_theta: float = 0.0
-    """Polar angle of the initial camera pose p⁰ on the view sphere (rad); 0 = above."""
-    initial_phi: float = 0.0
+    initial_radius: float = 0.5
+    """Distance of the initial camera pose p⁰ from the bottom centre of the scene (m).
+
+    A phase starts where the previous one ended, with the hand above the bin (§III,
+    footnote 1): the default p⁰ is the camera there, 0.5 m from the scene on its -y side,
+    looking at the centre. Table II's shortest-trajectory ratios imply a similar start,
+    about 0.55 m from the grasp (1.87 m / 337 %). ``initial_radius = radius`` with
+    ``initial_theta = 0`` starts at the top of the view sphere instead."""
+    initial_theta: float = 0.9
+    """Polar angle of p⁰ (rad); 0 = above the centre."""
+    initial_phi: float = -math.pi / 2
+    """Azimuth of p⁰ (rad, from +x toward +y); the circle baselines start their circle
+    at this azimuth too."""
     circle_theta: float = math.pi / 5
     """Polar angle of the circle baselines' waypoints (rad)."""
     hemisphere_radius: float = 0.5
@@ -187,6 +197,7 @@ class RunConfig:
         for name in (
             "cube_size",
             "radius",
+            "initial_radius",
             "hemisphere_radius",
             "fps",
             "max_velocity",

@@ -26,6 +26,7 @@ every stage can also be passed in (any object satisfying its protocol).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -120,8 +121,11 @@ class Pipeline:
 
     # ------------------------------------------------------------------ pieces
     def initial_pose(self) -> F64:
-        """``p⁰``: on the view sphere at ``(initial_phi, initial_theta)``."""
-        return self.sphere.pose(self.config.initial_phi, self.config.initial_theta)
+        """``p⁰``: ``initial_radius`` from the sphere's centre at ``(initial_phi,
+        initial_theta)``, looking at the centre of the scene."""
+        cfg = self.config
+        start = dataclasses.replace(self.sphere, radius=cfg.initial_radius)
+        return start.pose(cfg.initial_phi, cfg.initial_theta)
 
     def fixed_waypoints(self) -> F64:
         """Waypoints of a fixed-view method (or view planner)."""
@@ -247,6 +251,12 @@ class Pipeline:
                 t3 = time.perf_counter()
                 compute += t3 - t0
                 goal = self.candidates[u, v]
+                record = _candidate_record(target)
+                if gamma2 == 0.0:
+                    # §VI-B: grasps planned before the first view waypoint are unreliable,
+                    # which is why gamma2 = 0 there; neither may such a grasp anchor the
+                    # target of eq. 16 at the next waypoint.
+                    target = None
                 moved = self._move(current, goal)
                 if moved is None:
                     continue
@@ -262,7 +272,7 @@ class Pipeline:
                         "view_score": float(scores[u, v]),
                         "view_score_max": float(scores.max()),
                         "gamma2": gamma2,
-                        "target": _candidate_record(target),
+                        "target": record,
                         "grasp_candidates": len(cands),
                         "frames": len(cap),
                         "duration_s": duration,
