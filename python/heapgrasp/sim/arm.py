@@ -68,7 +68,8 @@ import pybullet as pb
 import pybullet_data
 
 from heapgrasp import HeapgraspError
-from heapgrasp.sim.gripper import MAX_OPENING, TCP_OFFSET, translate
+from heapgrasp.sim.fingers import MAX_OPENING, Fingers
+from heapgrasp.sim.gripper import TCP_OFFSET, translate
 from heapgrasp.sim.motion import MotionLimits, TimedPath
 from heapgrasp.sim.world import SimWorld, _pose, _split_pose
 
@@ -441,7 +442,7 @@ def _check_pose(name: str, pose: npt.ArrayLike) -> FloatArray:
     return m
 
 
-class PandaArm:
+class PandaArm(Fingers):
     """The Franka Panda arm (``panda.urdf``, fixed base) with a wrist camera.
 
     Satisfies :class:`heapgrasp.sim.robot.Robot`. The arm is added to ``world``'s
@@ -482,7 +483,8 @@ class PandaArm:
             names[info[1].decode()] = j
             links[info[12].decode()] = j
         self._arm = [names[n] for n in _ARM_JOINTS]
-        self._fingers = [names[n] for n in _FINGER_JOINTS]
+        self.finger_joints = [names[n] for n in _FINGER_JOINTS]
+        self.finger_force = self.config.finger_force
         self._hand_link = links["panda_hand"]
         self._hand2tcp: FloatArray | None = None
         if "panda_grasptarget" in links:
@@ -504,14 +506,14 @@ class PandaArm:
             np.linalg.inv(hand2tcp) @ cfg.hand2camera, dtype=np.float64
         )
         self._tcp2camera: FloatArray = np.asarray(np.linalg.inv(self.camera2tcp), np.float64)
-        for joint in self._fingers:
+        for joint in self.finger_joints:
             pb.changeDynamics(self.body, joint, lateralFriction=1.0, physicsClientId=self.client)
         # Fingers mirror each other (the URDF's mimic joint, as a gear constraint).
         gear = pb.createConstraint(
             self.body,
-            self._fingers[0],
+            self.finger_joints[0],
             self.body,
-            self._fingers[1],
+            self.finger_joints[1],
             pb.JOINT_GEAR,
             [1, 0, 0],
             [0, 0, 0],
@@ -552,11 +554,6 @@ class PandaArm:
         """Current positions of the 7 arm joints (rad)."""
         states = pb.getJointStates(self.body, self._arm, physicsClientId=self.client)
         return np.array([s[0] for s in states], dtype=np.float64)
-
-    def width(self) -> float:
-        """Current finger opening (m)."""
-        states = pb.getJointStates(self.body, self._fingers, physicsClientId=self.client)
-        return float(sum(s[0] for s in states))
 
     def step(self, n: int = 1) -> None:
         """Runs ``n`` physics steps (advancing the world's clock)."""
@@ -767,21 +764,10 @@ class PandaArm:
         )
         self._q_cmd = np.array(q, dtype=np.float64)
 
-    def _finger_targets(self, width: float) -> None:
-        for joint in self._fingers:
-            pb.setJointMotorControl2(
-                self.body,
-                joint,
-                pb.POSITION_CONTROL,
-                targetPosition=0.5 * width,
-                force=self.config.finger_force,
-                physicsClientId=self.client,
-            )
-
     def _teleport(self, q: FloatArray, width: float | None = None) -> None:
         self._set_arm(q)
         if width is not None:
-            for joint in self._fingers:
+            for joint in self.finger_joints:
                 pb.resetJointState(self.body, joint, 0.5 * width, 0.0, physicsClientId=self.client)
             self._finger_targets(width)
         self._command(q)
@@ -1093,41 +1079,12 @@ class PandaArm:
         self.step(round(0.1 / dt))
         return True
 
-    def close(self, seconds: float = 0.5) -> None:
-        """Closes the fingers (force-limited)."""
-        self._finger_targets(0.0)
-        self.step(int(seconds / self.world.config.time_step))
-
-    def open(self, seconds: float = 0.3) -> None:
-        """Opens the fingers fully."""
-        self._finger_targets(MAX_OPENING)
-        self.step(int(seconds / self.world.config.time_step))
-
     # ---------------------------------------------------------------- contacts
     def contacts(self) -> set[int]:
         """Bodies touched by the arm's moving links, hand or fingers (PyBullet ids); the
         base link standing on the table does not count, nor does the arm itself."""
         pts = pb.getContactPoints(bodyA=self.body, physicsClientId=self.client)
         return {int(p[2]) for p in pts if p[2] != self.body and p[3] != -1}
-
-    def finger_contacts(self) -> tuple[set[int], set[int]]:
-        """Bodies touched by the left and by the right finger."""
-        out = []
-        for link in self._fingers:
-            pts = pb.getContactPoints(bodyA=self.body, linkIndexA=link, physicsClientId=self.client)
-            out.append({int(p[2]) for p in pts if p[2] != self.body})
-        return out[0], out[1]
-
-    def held_object(self) -> int | None:
-        """World id of the object both fingers touch, if the fingers are not shut."""
-        if self.width() < 0.1 * MAX_OPENING * 0.5:
-            return None
-        left, right = self.finger_contacts()
-        both = left & right
-        for oid, obj in self.world.objects.items():
-            if obj.body in both:
-                return oid
-        return None
 
 
 # --------------------------------------------------------------------------- timing

@@ -25,16 +25,22 @@ import numpy.typing as npt
 import pybullet as pb
 import pybullet_data
 
+from heapgrasp.sim.fingers import MAX_OPENING, Fingers
 from heapgrasp.sim.objects import default_cache_dir
 from heapgrasp.sim.robot import Robot
 from heapgrasp.sim.world import SimWorld
 
-__all__ = ["Grasp", "GraspOutcome", "GraspResult", "PandaHand", "execute_grasp"]
+__all__ = [
+    "MAX_OPENING",
+    "Grasp",
+    "GraspOutcome",
+    "GraspResult",
+    "PandaHand",
+    "execute_grasp",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Maximum opening of the Panda hand (both fingers), metres.
-MAX_OPENING = 0.08
 #: Distance from the hand base to the TCP along z, metres.
 TCP_OFFSET = 0.105
 
@@ -144,8 +150,11 @@ def translate(x: float, y: float, z: float) -> FloatArray:
     return m
 
 
-class PandaHand:
+class PandaHand(Fingers):
     """The free-flying Panda hand in a :class:`SimWorld`."""
+
+    finger_joints = (0, 1)
+    finger_force = 40.0
 
     def __init__(self, world: SimWorld, *, max_force: float = 300.0) -> None:
         self.world = world
@@ -211,23 +220,6 @@ class PandaHand:
         """Moves the hand out of the way, high above the table."""
         self.reset(translate(-0.5, -0.5, 1.0))
 
-    def _finger_targets(self, width: float) -> None:
-        for joint in (0, 1):
-            pb.setJointMotorControl2(
-                self.body,
-                joint,
-                pb.POSITION_CONTROL,
-                targetPosition=0.5 * width,
-                force=40.0,
-                physicsClientId=self.client,
-            )
-
-    def width(self) -> float:
-        """Current finger opening (m)."""
-        return float(
-            sum(pb.getJointState(self.body, j, physicsClientId=self.client)[0] for j in (0, 1))
-        )
-
     def step(self, n: int = 1) -> None:
         """Runs ``n`` physics steps (advancing the world's clock)."""
         self.world.step_physics(n)
@@ -241,14 +233,6 @@ class PandaHand:
         """Bodies the hand touches (PyBullet ids)."""
         pts = pb.getContactPoints(bodyA=self.body, physicsClientId=self.client)
         return {int(p[2]) for p in pts if p[2] != self.body}
-
-    def finger_contacts(self) -> tuple[set[int], set[int]]:
-        """Bodies touched by the left and by the right finger."""
-        out = []
-        for link in (0, 1):
-            pts = pb.getContactPoints(bodyA=self.body, linkIndexA=link, physicsClientId=self.client)
-            out.append({int(p[2]) for p in pts if p[2] != self.body})
-        return out[0], out[1]
 
     def move_linear(
         self, target: FloatArray, *, speed: float = 0.1, abort_on_contact: bool = False
@@ -277,27 +261,6 @@ class PandaHand:
                 return False
         self.step(int(0.1 / dt))  # let the constraint catch up
         return True
-
-    def close(self, seconds: float = 0.5) -> None:
-        """Closes the fingers (force-limited)."""
-        self._finger_targets(0.0)
-        self.step(int(seconds / self.world.config.time_step))
-
-    def open(self, seconds: float = 0.3) -> None:
-        """Opens the fingers fully."""
-        self._finger_targets(MAX_OPENING)
-        self.step(int(seconds / self.world.config.time_step))
-
-    def held_object(self) -> int | None:
-        """World id of the object both fingers touch, if the fingers are not shut."""
-        if self.width() < 0.1 * MAX_OPENING * 0.5:
-            return None
-        left, right = self.finger_contacts()
-        both = left & right
-        for oid, obj in self.world.objects.items():
-            if obj.body in both:
-                return oid
-        return None
 
 
 def execute_grasp(

@@ -1,0 +1,83 @@
+"""The Panda's two fingers, shared by the free-flying hand and the arm.
+
+Both robots load a body whose two prismatic finger joints are coupled; everything the
+grasp protocol asks of the fingers (open, close force-limited, read the opening, tell
+which object both fingers hold) depends only on that body, its finger joints and the
+world, so it lives here once. A class mixing :class:`Fingers` in sets ``world``,
+``client``, ``body``, ``finger_joints`` and ``finger_force``, and provides ``step``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import pybullet as pb
+
+if TYPE_CHECKING:
+    from heapgrasp.sim.world import SimWorld
+
+__all__ = ["MAX_OPENING", "Fingers"]
+
+#: Maximum opening of the Panda hand (m).
+MAX_OPENING = 0.08
+
+
+class Fingers:
+    """Finger control and grasp checks for a body with two coupled finger joints."""
+
+    world: SimWorld
+    client: int
+    body: int
+    finger_joints: Sequence[int]
+    """The two finger joint (and link) indices of ``body``."""
+    finger_force: float
+    """Force limit of each finger's position motor (N)."""
+
+    def step(self, n: int = 1) -> None:  # pragma: no cover - provided by the robot
+        raise NotImplementedError
+
+    def _finger_targets(self, width: float) -> None:
+        for joint in self.finger_joints:
+            pb.setJointMotorControl2(
+                self.body,
+                joint,
+                pb.POSITION_CONTROL,
+                targetPosition=0.5 * width,
+                force=self.finger_force,
+                physicsClientId=self.client,
+            )
+
+    def width(self) -> float:
+        """Current finger opening (m)."""
+        states = pb.getJointStates(self.body, list(self.finger_joints), physicsClientId=self.client)
+        return float(sum(s[0] for s in states))
+
+    def close(self, seconds: float = 0.5) -> None:
+        """Closes the fingers (force-limited)."""
+        self._finger_targets(0.0)
+        self.step(int(seconds / self.world.config.time_step))
+
+    def open(self, seconds: float = 0.3) -> None:
+        """Opens the fingers fully."""
+        self._finger_targets(MAX_OPENING)
+        self.step(int(seconds / self.world.config.time_step))
+
+    def finger_contacts(self) -> tuple[set[int], set[int]]:
+        """Bodies touched by the left and by the right finger."""
+        out = []
+        for link in self.finger_joints:
+            pts = pb.getContactPoints(bodyA=self.body, linkIndexA=link, physicsClientId=self.client)
+            out.append({int(p[2]) for p in pts if p[2] != self.body})
+        return out[0], out[1]
+
+    def held_object(self) -> int | None:
+        """World id of the object both fingers touch, if the fingers are not shut."""
+        if self.width() < 0.1 * MAX_OPENING * 0.5:
+            return None
+        left, right = self.finger_contacts()
+        both = left & right
+        for oid, obj in self.world.objects.items():
+            if obj.body in both:
+                return oid
+        return None
