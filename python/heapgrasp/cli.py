@@ -4,9 +4,9 @@ Commands are grouped in subparsers, each group in its own module exposing
 ``add_parser(subparsers)``; every leaf command sets ``func``, a callable taking the
 parsed :class:`argparse.Namespace` and returning the exit status::
 
-    heapgrasp run [options]            simulated pick-and-place (HEAPGrasp, baselines)
-    heapgrasp bench carve|world|sim    benchmarks
-    heapgrasp sim capture              frames of a seeded scene
+    heapgrasp run [options]                  simulated pick-and-place (HEAPGrasp, baselines)
+    heapgrasp bench carve|world|sim|grasp    benchmarks
+    heapgrasp sim capture                    frames of a seeded scene
 """
 
 from __future__ import annotations

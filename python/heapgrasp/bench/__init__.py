@@ -8,7 +8,9 @@ its subcommand (and sets ``func``, the function that runs it, as a parser defaul
 * :mod:`heapgrasp.bench.world` -- ``heapgrasp bench world``: ground-truth masks vs
   PyBullet rendering, seconds per simulated grasp phase;
 * :mod:`heapgrasp.bench.sim` -- ``heapgrasp bench sim``: the closed loop of HEAPGrasp and
-  its baselines on seed 000's protocol (Tables II/III, Fig. 4/5).
+  its baselines on seed 000's protocol (Tables II/III, Fig. 4/5);
+* :mod:`heapgrasp.bench.grasp` -- ``heapgrasp bench grasp``: the analytic antipodal grasp
+  planner on circle / dense Shape-from-Silhouette grids, one executed grasp per scene.
 
 Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`.
 """
@@ -17,7 +19,7 @@ from __future__ import annotations
 
 import argparse
 
-from heapgrasp.bench import carve, sim, world
+from heapgrasp.bench import carve, grasp, sim, world
 
 __all__ = ["add_parser"]
 
@@ -49,4 +51,5 @@ def add_parser(
     carve.add_parser(benches)
     world.add_parser(benches)
     sim.add_parser(benches)
+    grasp.add_parser(benches)
     return p
