@@ -44,6 +44,7 @@ import numpy.typing as npt
 from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
 import heapgrasp
+from heapgrasp.bench.argtypes import float_in, int_at_least
 from heapgrasp.bench.scenes import CUBE, CameraSpec, camera_spec, ring, sphere_masks
 
 __all__ = [
@@ -793,31 +794,11 @@ def format_report(
 # --------------------------------------------------------------------------------------
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not value > 0.0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
-    return value
-
-
 def _sizes(text: str) -> tuple[int, ...]:
     items = [s.strip() for s in text.split(",") if s.strip()]
     if not items:
         raise argparse.ArgumentTypeError("expected comma-separated resolutions, e.g. 40,80")
-    return tuple(_positive_int(s) for s in items)
+    return tuple(int_at_least(1)(s) for s in items)
 
 
 def _images(text: str) -> tuple[tuple[int, int], ...]:
@@ -828,7 +809,7 @@ def _images(text: str) -> tuple[tuple[int, int], ...]:
         parts = item.lower().split("x")
         if len(parts) != 2:
             raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, got {item!r}")
-        out.append((_positive_int(parts[0]), _positive_int(parts[1])))
+        out.append((int_at_least(1)(parts[0]), int_at_least(1)(parts[1])))
     if not out:
         raise argparse.ArgumentTypeError("expected comma-separated WIDTHxHEIGHT, e.g. 320x240")
     return tuple(out)
@@ -897,7 +878,7 @@ def add_parser(
     )
     p.add_argument(
         "--views",
-        type=_positive_int,
+        type=int_at_least(1),
         default=30,
         metavar="N",
         help="silhouettes carved per call (default: 30)",
@@ -912,7 +893,7 @@ def add_parser(
     )
     p.add_argument(
         "--repeats",
-        type=_positive_int,
+        type=int_at_least(1),
         default=None,
         metavar="N",
         help="timed runs per method and configuration (default: "
@@ -921,7 +902,7 @@ def add_parser(
     )
     p.add_argument(
         "--max-seconds",
-        type=_positive_float,
+        type=float_in(0.0, open_low=True),
         default=10.0,
         metavar="S",
         help="time budget per method and configuration: no further run starts once "

@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from heapgrasp.bench.argtypes import float_in, int_at_least
 from heapgrasp.config import CATEGORIES, LAYOUTS, ConfigError, RunConfig
 
 if TYPE_CHECKING:
@@ -585,46 +586,6 @@ def run(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------------------
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
-
-
-def _non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
-    return value
-
-
-def _unit_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be in [0, 1], got {text}")
-    return value
-
-
-def _sigma(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value >= 0.0):
-        raise argparse.ArgumentTypeError(f"must be finite and >= 0, got {text}")
-    return value
-
-
 def _grids(text: str) -> tuple[str, ...]:
     names = [s.strip().lower() for s in text.split(",") if s.strip()]
     bad = [n for n in names if n not in GRIDS]
@@ -664,11 +625,11 @@ def add_parser(
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument(
-        "--scenes", type=_positive_int, default=30, metavar="N", help="scenes (default: 30)"
+        "--scenes", type=int_at_least(1), default=30, metavar="N", help="scenes (default: 30)"
     )
     p.add_argument(
         "--seed",
-        type=_non_negative_int,
+        type=int_at_least(0),
         default=0,
         metavar="S",
         help="seed of scene 0; scene i has seed S + i (default: 0)",
@@ -676,7 +637,7 @@ def add_parser(
     p.add_argument("--layout", choices=LAYOUTS, default="pile", help="scene layout (default: pile)")
     p.add_argument(
         "--objects",
-        type=_positive_int,
+        type=int_at_least(1),
         default=5,
         metavar="N",
         help="objects per scene (default: 5)",
@@ -693,14 +654,14 @@ def add_parser(
     )
     p.add_argument(
         "--epsilon",
-        type=_unit_float,
+        type=float_in(0.0, 1.0),
         default=None,
         metavar="E",
         help="score threshold ε of select_candidates (default: AntipodalPlanner().epsilon)",
     )
     p.add_argument(
         "--sigma",
-        type=_sigma,
+        type=float_in(0.0),
         default=None,
         metavar="S",
         help="Gaussian σ (voxels) of select_candidates (default: AntipodalPlanner().sigma)",

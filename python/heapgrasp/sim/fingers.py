@@ -34,8 +34,10 @@ class Fingers:
     finger_force: float
     """Force limit of each finger's position motor (N)."""
 
-    def step(self, n: int = 1) -> None:  # pragma: no cover - provided by the robot
-        raise NotImplementedError
+    if TYPE_CHECKING:
+
+        def step(self, n: int = 1) -> None:
+            """Runs ``n`` physics steps (the robot's own)."""
 
     def _finger_targets(self, width: float) -> None:
         for joint in self.finger_joints:

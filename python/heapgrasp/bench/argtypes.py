@@ -1,0 +1,47 @@
+"""Argument types of the ``heapgrasp bench`` commands: numbers checked against a range,
+refused with a message that names the bad value (argparse turns it into exit status 2)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+
+__all__ = ["float_in", "int_at_least"]
+
+
+def int_at_least(lo: int) -> Callable[[str], int]:
+    """A parser of integers ``>= lo``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if value < lo:
+            raise argparse.ArgumentTypeError(f"must be >= {lo}, got {value}")
+        return value
+
+    parse.__name__ = f"integer >= {lo}"
+    return parse
+
+
+def float_in(lo: float, hi: float = math.inf, *, open_low: bool = False) -> Callable[[str], float]:
+    """A parser of finite numbers in ``[lo, hi]`` (``(lo, hi]`` with ``open_low``)."""
+    low = "(" if open_low else "["
+    span = f"> {lo}" if hi == math.inf and open_low else f"in {low}{lo}, {hi}]"
+    if hi == math.inf and not open_low:
+        span = f">= {lo}"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        ok = math.isfinite(value) and (value > lo if open_low else value >= lo) and value <= hi
+        if not ok:
+            raise argparse.ArgumentTypeError(f"must be finite and {span}, got {text}")
+        return value
+
+    parse.__name__ = f"number {span}"
+    return parse
