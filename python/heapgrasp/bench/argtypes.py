@@ -7,7 +7,7 @@ import argparse
 import math
 from collections.abc import Callable
 
-__all__ = ["float_in", "int_at_least"]
+__all__ = ["comma_choices", "float_in", "int_at_least"]
 
 
 def int_at_least(lo: int) -> Callable[[str], int]:
@@ -44,4 +44,22 @@ def float_in(lo: float, hi: float = math.inf, *, open_low: bool = False) -> Call
         return value
 
     parse.__name__ = f"number {span}"
+    return parse
+
+
+def comma_choices(what: str, allowed: tuple[str, ...]) -> Callable[[str], tuple[str, ...]]:
+    """A parser of a comma-separated subset of ``allowed`` (returned in ``allowed``'s
+    order); ``what`` names the items in the error, e.g. ``"method"``."""
+
+    def parse(text: str) -> tuple[str, ...]:
+        names = [s.strip().lower() for s in text.split(",") if s.strip()]
+        bad = [n for n in names if n not in allowed]
+        if bad or not names:
+            raise argparse.ArgumentTypeError(
+                f"unknown {what}(s) {', '.join(repr(b) for b in bad) or '(none)'}; "
+                f"choose from {', '.join(allowed)}"
+            )
+        return tuple(a for a in allowed if a in names)
+
+    parse.__name__ = f"{what} list"
     return parse

@@ -44,7 +44,7 @@ import numpy.typing as npt
 from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
 import heapgrasp
-from heapgrasp.bench.argtypes import float_in, int_at_least
+from heapgrasp.bench.argtypes import comma_choices, float_in, int_at_least
 from heapgrasp.bench.scenes import CUBE, CameraSpec, camera_spec, ring, sphere_masks
 
 __all__ = [
@@ -815,16 +815,6 @@ def _images(text: str) -> tuple[tuple[int, int], ...]:
     return tuple(out)
 
 
-def _methods(text: str) -> tuple[str, ...]:
-    names = [s.strip().lower() for s in text.split(",") if s.strip()]
-    bad = [n for n in names if n not in METHODS]
-    if bad or not names:
-        raise argparse.ArgumentTypeError(
-            f"unknown method(s) {', '.join(bad) or '(none)'}; choose from {', '.join(METHODS)}"
-        )
-    return tuple(m for m in METHODS if m in names)
-
-
 def add_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
 ) -> argparse.ArgumentParser:
@@ -885,7 +875,7 @@ def add_parser(
     )
     p.add_argument(
         "--methods",
-        type=_methods,
+        type=comma_choices("method", METHODS),
         default=METHODS,
         metavar="M[,M...]",
         help=f"methods to run, from {','.join(METHODS)} (default: all; numpy is the "

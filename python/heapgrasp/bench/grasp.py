@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.bench.argtypes import float_in, int_at_least
+from heapgrasp.bench.argtypes import comma_choices, float_in, int_at_least
 from heapgrasp.config import CATEGORIES, LAYOUTS, ConfigError, RunConfig
 
 if TYPE_CHECKING:
@@ -586,17 +586,6 @@ def run(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------------------
 
 
-def _grids(text: str) -> tuple[str, ...]:
-    names = [s.strip().lower() for s in text.split(",") if s.strip()]
-    bad = [n for n in names if n not in GRIDS]
-    if bad or not names:
-        raise argparse.ArgumentTypeError(
-            f"unknown grid(s) {', '.join(repr(b) for b in bad) or '(none)'}; "
-            f"choose from {', '.join(GRIDS)}"
-        )
-    return tuple(g for g in GRIDS if g in names)
-
-
 def add_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
 ) -> argparse.ArgumentParser:
@@ -647,7 +636,7 @@ def add_parser(
     )
     p.add_argument(
         "--grids",
-        type=_grids,
+        type=comma_choices("grid", GRIDS),
         default=GRIDS,
         metavar="G[,G...]",
         help=f"grids to evaluate, from {','.join(GRIDS)} (default: both)",
