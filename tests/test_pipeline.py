@@ -125,6 +125,34 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
     assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.24)
 
 
+def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:
+    model = box_model(tmp_path)
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        pipeline = build_pipeline(RunConfig(method="no-vp"), world)
+        planned = pipeline.plan()
+        assert planned.grasp is not None
+        first = planned.grasp.pose[:3, 3].copy()
+        before = pipeline.grasp_candidates()
+        pipeline.record_outcome(planned.grasp, "empty")
+        after = pipeline.grasp_candidates()
+        # Every candidate near the failed grasp is gone; the others stay.
+        assert all(np.linalg.norm(c.position - first) > 0.02 for c in after)
+        kept = [c for c in before if np.linalg.norm(c.position - first) > 0.02]
+        assert [c.index for c in after] == [c.index for c in kept]
+        assert len(after) < len(before)
+        again = pipeline.plan()
+        if again.grasp is not None:
+            assert np.linalg.norm(again.grasp.pose[:3, 3] - first) > 0.02
+        # A success means the scene changed: the memory is cleared.
+        pipeline.record_outcome(planned.grasp, "success")
+        assert [c.index for c in pipeline.grasp_candidates()] == [c.index for c in before]
+        # failed_grasp_radius = 0 allows the repeat.
+        pipeline.record_outcome(planned.grasp, "empty")
+        pipeline.config = pipeline.config.replace({"failed_grasp_radius": 0.0})
+        assert [c.index for c in pipeline.grasp_candidates()] == [c.index for c in before]
+
+
 def _interrupt_after(n: int) -> Any:
     seen: list[int] = []
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from heapgrasp.sim.gripper import Grasp, PandaHand
+from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand
 from heapgrasp.sim.metrics import Phase, aggregate, shortest_trajectory_ratio, trajectory_length
 from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
 from heapgrasp.sim.protocol import (
@@ -49,7 +49,9 @@ def test_stop_rules() -> None:
     assert stop_reason(3, 1, True) is None
 
 
-def run(tmp: Path, planner: str) -> tuple[list[Phase], StopReason, SimWorld]:
+def run(
+    tmp: Path, planner: str, outcomes: list[str] | None = None
+) -> tuple[list[Phase], StopReason, SimWorld]:
     models = boxes(tmp, 3)
     world = SimWorld(ObjectLibrary(models))
     world.reset(layout="packed", n_objects=3, category="mixed", seed=1, models=models)
@@ -64,7 +66,11 @@ def run(tmp: Path, planner: str) -> tuple[list[Phase], StopReason, SimWorld]:
         oid = min(world.objects)
         return PlanResult(top_down_grasp(world, oid), cam, 1.0, target_object=oid)
 
-    phases, reason = run_clutter_removal(hand, plan)
+    def told(grasp: Grasp, outcome: GraspOutcome) -> None:
+        assert outcomes is not None
+        outcomes.append(outcome.value)
+
+    phases, reason = run_clutter_removal(hand, plan, on_outcome=None if outcomes is None else told)
     return phases, reason, world
 
 
@@ -87,6 +93,21 @@ def test_two_consecutive_failures_stop_the_run(tmp_path: Path) -> None:
         assert [p.outcome for p in phases] == ["empty", "empty"]
         assert len(world.objects) == 3
         assert aggregate(phases, 3)["grasp_success_rate"] == 0.0
+
+
+def test_the_planner_is_told_every_outcome(tmp_path: Path) -> None:
+    told: list[str] = []
+    phases, _, world = run(tmp_path, "empty", told)
+    with world:
+        assert told == [p.outcome for p in phases] == ["empty", "empty"]
+    told = []
+    phases, _, world = run(tmp_path, "object", told)
+    with world:
+        assert told == ["success"] * 3
+    told = []
+    phases, _, world = run(tmp_path, "none", told)
+    with world:
+        assert told == []  # nothing executed
 
 
 def test_no_candidate_stops_the_run(tmp_path: Path) -> None:

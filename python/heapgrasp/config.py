@@ -105,6 +105,11 @@ class RunConfig:
     """Gaussian smoothing of the grasp scores (voxels); None = the grasp planner's own
     recommendation (1.0 for the VGN network, as VGN; see the analytic planner)."""
     nms_window: int = 4
+    failed_grasp_radius: float = 0.02
+    """After a failed grasp, candidates within this distance of it (m) are not tried
+    again until a grasp succeeds (the scene has then changed). The simulation is
+    deterministic and a failed grasp usually leaves the scene as it was, so without this
+    the same grasp would be planned and fail again; 0 allows the repeat."""
     gamma1: float = 0.2
     """Weight of the orientation term of dist (eq. 17)."""
     # -- view planning (eq. 12-14, 18-19)
@@ -185,6 +190,7 @@ class RunConfig:
         if self.epsilon is not None:
             between("epsilon", 0.0, 1.0)
         between("noise", 0.0, 0.5)
+        between("failed_grasp_radius", 0.0, 1.0)
         between("theta_max", 0.0, math.pi / 2)
         between("initial_theta", 0.0, math.pi / 2)
         between("circle_theta", 0.0, math.pi / 2)

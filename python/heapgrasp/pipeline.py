@@ -14,6 +14,10 @@ grasp (footnote 3 of the paper). :class:`Pipeline.plan` runs it:
 3. plan grasps on the final grid: ``heapgrasp`` keeps the target of eq. 16, the
    baselines take the top-scoring grasp.
 
+Every method forgets candidates within ``failed_grasp_radius`` of a grasp that failed
+since the last success (:meth:`Pipeline.record_outcome`): the simulation is
+deterministic, and an empty grasp leaves the scene as it was.
+
 The camera path of the phase is every captured camera position followed by the grasp
 position (the camera reaches the grasp with the hand). The phase's compute time is the
 measured time of perception, grasp planning, view planning and selection (not the time
@@ -52,7 +56,7 @@ from heapgrasp.perception import (
 )
 from heapgrasp.selection import select_next_waypoint, select_target, top_scoring
 from heapgrasp.sim.camera import CameraSpec
-from heapgrasp.sim.gripper import Grasp
+from heapgrasp.sim.gripper import Grasp, GraspOutcome
 from heapgrasp.sim.motion import MotionLimits, ViewSphere, plan_waypoints, time_path
 from heapgrasp.sim.protocol import PlanResult
 from heapgrasp.sim.robot import Robot
@@ -116,6 +120,7 @@ class Pipeline:
         self.adaptive = cfg.method == "heapgrasp" and cfg.view_planner in ("oracle", "network")
         self.joint_path_errors = 0
         self.unreachable_waypoints = 0
+        self.failed_grasps: list[F64] = []
         if self.adaptive and self.view_scorer is None:
             raise ConfigError(f"view_planner {cfg.view_planner!r} needs a view scorer")
 
@@ -167,9 +172,26 @@ class Pipeline:
         eps = (
             cfg.epsilon if cfg.epsilon is not None else getattr(self.grasp_planner, "epsilon", 0.8)
         )
-        return select_candidates(
+        cands = select_candidates(
             volumes, epsilon=float(eps), sigma=float(sigma), nms_window=cfg.nms_window
         )
+        if not self.failed_grasps or cfg.failed_grasp_radius <= 0.0:
+            return cands
+        failed = np.asarray(self.failed_grasps)
+        return [
+            c
+            for c in cands
+            if np.min(np.linalg.norm(failed - c.position, axis=1)) > cfg.failed_grasp_radius
+        ]
+
+    def record_outcome(self, grasp: Grasp, outcome: GraspOutcome | str) -> None:
+        """Remembers a failed grasp (its candidates are dropped by
+        :meth:`grasp_candidates` from now on); a success clears the memory, since the
+        scene has changed. ``run_clutter_removal``'s ``on_outcome`` hook."""
+        if GraspOutcome(outcome) == GraspOutcome.SUCCESS:
+            self.failed_grasps.clear()
+        else:
+            self.failed_grasps.append(np.asarray(grasp.pose, dtype=np.float64)[:3, 3].copy())
 
     def _move(self, start: F64, goal: F64) -> tuple[Capture, float, float] | None:
         """Moves the camera to ``goal`` capturing; None if the arm cannot get there."""

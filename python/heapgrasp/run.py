@@ -95,7 +95,10 @@ def run_scene(
         total = len(world.objects)
         pipeline = build_pipeline(config, world, seed=seed)
         phases, reason = run_clutter_removal(
-            pipeline.robot, pipeline.plan, max_attempts=config.max_attempts
+            pipeline.robot,
+            pipeline.plan,
+            max_attempts=config.max_attempts,
+            on_outcome=pipeline.record_outcome,
         )
     return {
         "scene": index,

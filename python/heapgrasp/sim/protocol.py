@@ -132,9 +132,14 @@ def run_clutter_removal(
     plan: Callable[[], PlanResult],
     *,
     max_attempts: int = 50,
+    on_outcome: Callable[[Grasp, GraspOutcome], None] | None = None,
 ) -> tuple[list[Phase], StopReason]:
     """Runs the protocol with a pick planner (called once per phase) and returns the
-    phases and why it stopped."""
+    phases and why it stopped.
+
+    ``on_outcome``, when given, is told every executed grasp and how it ended (before
+    the next phase is planned), e.g. :meth:`heapgrasp.pipeline.Pipeline.record_outcome`.
+    """
     world = hand.world
     total_failures = 0
     phases: list[Phase] = []
@@ -162,6 +167,8 @@ def run_clutter_removal(
             )
             return phases, StopReason.NO_CANDIDATE
         result = execute_grasp(hand, planned.grasp)
+        if on_outcome is not None:
+            on_outcome(planned.grasp, result.outcome)
         held = result.object_id
         target = held if held is not None else planned.target_object
         category = world.objects[target].category.value if target in world.objects else None
