@@ -151,7 +151,7 @@ def test_one_scene_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert {"cpu_model", "cpu_count", "heapgrasp"} <= set(data["machine"])
     config = data["config"]
     assert config["grids"] == ["circle"] and config["scenes"] == 1
-    assert (config["epsilon"], config["sigma"]) == (0.5, 0.5)  # AntipodalPlanner's own
+    assert (config["epsilon"], config["sigma"]) == (0.4, 0.5)  # AntipodalPlanner's own
     assert set(data["summary"]) == {"circle"}
     s = data["summary"]["circle"]
     assert s["errors"] == 0
@@ -167,3 +167,11 @@ def test_one_scene_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]
         assert record["outcome"] in s["outcomes"] and len(grasp["position"]) == 3
         assert 0.0 <= grasp["width"] <= 0.08 and grasp["nearest_object_distance_m"] >= 0.0
     assert (out / "table.md").read_text().startswith("# heapgrasp bench grasp — 1 scene ×")
+
+
+def test_the_config_defaults_are_the_planners_own() -> None:
+    from heapgrasp.grasping.antipodal import AntipodalPlanner
+
+    planner = AntipodalPlanner()
+    config = GraspBenchConfig()
+    assert (config.epsilon, config.sigma) == (planner.epsilon, planner.sigma)

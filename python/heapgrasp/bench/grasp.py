@@ -113,7 +113,8 @@ class GraspBenchConfig:
     grids : tuple of str
         Grid kinds among :data:`GRIDS`.
     epsilon, sigma : float
-        Threshold ε and Gaussian σ (voxels) of :func:`select_candidates`.
+        Threshold ε and Gaussian σ (voxels) of :func:`select_candidates`; the defaults
+        are :class:`~heapgrasp.grasping.antipodal.AntipodalPlanner`'s own.
     nms_window : int
         Non-maximum-suppression window of :func:`select_candidates`.
     """
@@ -124,7 +125,7 @@ class GraspBenchConfig:
     objects: int = 5
     category: str = "mixed"
     grids: tuple[str, ...] = GRIDS
-    epsilon: float = 0.5
+    epsilon: float = 0.4
     sigma: float = 0.5
     nms_window: int = 4
 
