@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
@@ -12,6 +14,9 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 import heapgrasp as hg
 import reference as ref
+
+if TYPE_CHECKING:
+    from heapgrasp.sim.objects import ObjectModel
 
 GRID_ORIGIN = (-0.15, -0.15, 0.0)
 GRID_SIZE = 0.30
@@ -73,3 +78,21 @@ def box_scene():
         mid = scene.add_mesh(v, f, pose)
         meshes.append((mid, v, f, pose))
     return scene, meshes
+
+
+def box_model(tmp: Path, extents: tuple[float, float, float] = (0.05, 0.05, 0.05)) -> ObjectModel:
+    """A user box of ``extents`` (m), its mesh written to ``tmp/box.obj``."""
+    import trimesh
+    from heapgrasp.sim.objects import ObjectModel
+
+    path = tmp / "box.obj"
+    trimesh.creation.box(extents=extents).export(path)
+    return ObjectModel(
+        name="test/box",
+        source="user",
+        visual_mesh=path,
+        collision_meshes=(path,),
+        mass=0.1,
+        split="test",
+        extents=extents,
+    )

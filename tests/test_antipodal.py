@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import trimesh
 from heapgrasp import OccupancyGrid
 from heapgrasp.grasping.antipodal import AntipodalPlanner, GripperGeometry, grasp_orientations
 from heapgrasp.grasping.volumes import (
@@ -229,24 +228,14 @@ def test_bad_grids_are_rejected(planner: AntipodalPlanner) -> None:
 
 
 def test_a_carved_box_is_grasped_in_simulation(tmp_path: Path) -> None:
+    from conftest import box_model
     from heapgrasp.sim.camera import CameraSpec
     from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand, execute_grasp
     from heapgrasp.sim.motion import ViewSphere
-    from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
+    from heapgrasp.sim.objects import ObjectLibrary
     from heapgrasp.sim.world import SimWorld
 
-    path = tmp_path / "box.obj"
-    extents = (0.045, 0.07, 0.08)
-    trimesh.creation.box(extents=extents).export(path)
-    model = ObjectModel(
-        name="test/box",
-        source="user",
-        visual_mesh=path,
-        collision_meshes=(path,),
-        mass=0.1,
-        split="test",
-        extents=extents,
-    )
+    model = box_model(tmp_path, (0.045, 0.07, 0.08))
     camera = CameraSpec.continuous()
     sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.30, radius=0.33)
     with SimWorld(ObjectLibrary([model])) as world:

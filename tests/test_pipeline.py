@@ -8,33 +8,21 @@ from typing import Any
 
 import numpy as np
 import pytest
-import trimesh
+from conftest import box_model
 from heapgrasp.config import ConfigError, RunConfig
 from heapgrasp.grasping.volumes import GraspCandidate
 from heapgrasp.pipeline import build_pipeline
 from heapgrasp.run import RESULTS_FILE, SCENES_FILE, RunExistsError, load_records, run
-from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
+from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.protocol import StopReason, run_clutter_removal
 from heapgrasp.sim.world import SimWorld
 
-
-def box_model(tmp: Path, extents: tuple[float, float, float] = (0.05, 0.04, 0.07)) -> ObjectModel:
-    path = tmp / "box.obj"
-    trimesh.creation.box(extents=extents).export(path)
-    return ObjectModel(
-        name="test/box",
-        source="user",
-        visual_mesh=path,
-        collision_meshes=(path,),
-        mass=0.1,
-        split="test",
-        extents=extents,
-    )
+BOX = (0.05, 0.04, 0.07)
 
 
 @pytest.mark.parametrize("method", ["heapgrasp", "no-vp", "vgn"])
 def test_one_object_scene_ends_in_a_successful_grasp(tmp_path: Path, method: str) -> None:
-    model = box_model(tmp_path)
+    model = box_model(tmp_path, BOX)
     config = RunConfig(method=method, objects=1, category="opaque")
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
@@ -56,7 +44,7 @@ def test_one_object_scene_ends_in_a_successful_grasp(tmp_path: Path, method: str
 
 
 def test_transparent_object_is_invisible_to_the_depth_baseline(tmp_path: Path) -> None:
-    model = box_model(tmp_path)
+    model = box_model(tmp_path, BOX)
     config = RunConfig(method="vgn", objects=1, category="transparent")
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="transparent", seed=0, models=[model])
@@ -71,7 +59,7 @@ def test_transparent_object_is_invisible_to_the_depth_baseline(tmp_path: Path) -
 
 
 def test_a_phase_starts_beside_the_scene_looking_at_it(tmp_path: Path) -> None:
-    model = box_model(tmp_path)
+    model = box_model(tmp_path, BOX)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
         pipeline = build_pipeline(RunConfig(method="no-vp"), world)
@@ -107,7 +95,7 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
     # Eq. 16 keeps the grasp closest to the previous target, but the target planned at
     # p0 (gamma2 = 0, §VI-B: unreliable) must not anchor it: at the second waypoint the
     # top-scoring grasp wins, and from then on the closest one.
-    model = box_model(tmp_path)
+    model = box_model(tmp_path, BOX)
     script = [
         [_candidate(0.05, 0.9)],  # at p0
         [_candidate(0.06, 0.5), _candidate(0.25, 0.95)],  # near p0's target / best
@@ -126,7 +114,7 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
 
 
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:
-    model = box_model(tmp_path)
+    model = box_model(tmp_path, BOX)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
         pipeline = build_pipeline(RunConfig(method="no-vp"), world)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import trimesh
+from conftest import box_model
 from heapgrasp.sim.arm import (
     ArmConfig,
     JointPathError,
@@ -20,7 +20,7 @@ from heapgrasp.sim.arm import (
 )
 from heapgrasp.sim.gripper import Grasp, GraspOutcome, execute_grasp
 from heapgrasp.sim.motion import MotionLimits, ViewSphere, plan_waypoints
-from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
+from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.protocol import BIN_POSE
 from heapgrasp.sim.robot import Robot
 from heapgrasp.sim.world import SimWorld
@@ -48,20 +48,6 @@ def top_down(x: float, y: float, z: float, yaw: float = 0.0) -> np.ndarray:
     m[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ TOP_DOWN
     m[:3, 3] = (x, y, z)
     return m
-
-
-def box_model(tmp: Path, size: float = 0.05) -> ObjectModel:
-    path = tmp / "box.obj"
-    trimesh.creation.box(extents=(size, size, size)).export(path)
-    return ObjectModel(
-        name="test/box",
-        source="user",
-        visual_mesh=path,
-        collision_meshes=(path,),
-        mass=0.1,
-        split="test",
-        extents=(size, size, size),
-    )
 
 
 @pytest.fixture(scope="module")

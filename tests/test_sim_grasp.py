@@ -6,26 +6,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import trimesh
+from conftest import box_model
 from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand, execute_grasp
-from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
+from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.world import SimWorld
 
 TOP_DOWN = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # TCP z pointing down
-
-
-def box_model(tmp: Path, size: float = 0.05) -> ObjectModel:
-    path = tmp / "box.obj"
-    trimesh.creation.box(extents=(size, size, size)).export(path)
-    return ObjectModel(
-        name="test/box",
-        source="user",
-        visual_mesh=path,
-        collision_meshes=(path,),
-        mass=0.1,
-        split="test",
-        extents=(size, size, size),
-    )
 
 
 def tcp(position: tuple[float, float, float], rotation: np.ndarray = TOP_DOWN) -> np.ndarray:
