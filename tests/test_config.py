@@ -30,6 +30,8 @@ def test_defaults_are_table_one() -> None:
         ({"initial_radius": 0.0}, "initial_radius: must be > 0"),
         ({"noise": 0.7}, "noise: must be in"),
         ({"epsilon": float("nan")}, "epsilon"),
+        ({"oracle_frames": 0}, "oracle_frames: must be an integer >= 1; got 0"),
+        ({"circle_closed": 1}, "circle_closed must be of type bool"),
         ({"lamda": 0.9}, "unknown parameter 'lamda'"),
         ({"Theta-Max": 0.5}, "did you mean 'theta_max'"),
     ],
@@ -74,3 +76,12 @@ def test_cli_reports_bad_config_with_status_2(
     assert not (tmp_path / "r").exists(), "nothing is written for a bad configuration"
     assert main(["run", "--print-config", "--objects", "7"]) == 0
     assert '"objects": 7' in capsys.readouterr().out
+
+
+def test_the_oracle_scores_with_the_configured_number_of_silhouettes() -> None:
+    from heapgrasp.pipeline import make_view_scorer
+    from heapgrasp.viewplan import OracleViewScorer
+
+    scorer = make_view_scorer(RunConfig(oracle_frames=40))
+    assert isinstance(scorer, OracleViewScorer) and scorer.frames_per_candidate == 40
+    assert make_view_scorer(RunConfig(method="no-vp", oracle_frames=40)) is None

@@ -350,3 +350,18 @@ def test_circle_waypoints_are_evenly_spaced():
         assert theta == pytest.approx(math.pi / 5)
         assert r == pytest.approx(0.33)
         np.testing.assert_allclose(pose, s.pose(phi, theta), atol=1e-14)
+
+
+def test_a_closed_circle_goes_once_around_and_back_to_its_first_waypoint():
+    s = sphere()
+    open_ = circle_waypoints(s, L=3, theta=math.pi / 5, phi0=-0.7)
+    closed = circle_waypoints(s, L=3, theta=math.pi / 5, phi0=-0.7, closed=True)
+    assert closed.shape == (4, 4, 4)
+    np.testing.assert_array_equal(closed[:3], open_)
+    np.testing.assert_allclose(closed[3], closed[0], atol=1e-12)
+    # three equal legs: the whole circle, not two thirds of it
+    legs = np.linalg.norm(np.diff(closed[:, :3, 3], axis=0), axis=1)
+    np.testing.assert_allclose(legs, legs[0], rtol=1e-12)
+    assert len(circle_waypoints(s, L=1, closed=True)) == 2
+    with pytest.raises(ValueError, match="L"):
+        circle_waypoints(s, L=0, closed=True)

@@ -63,7 +63,7 @@ class RunConfig:
 
     # -- what to run
     method: str = "heapgrasp"
-    """``heapgrasp`` (view planning), ``no-vp`` (L waypoints on a circle, SfS),
+    """``heapgrasp`` (view planning), ``no-vp`` (once around a circle of L waypoints, SfS),
     ``vgn`` (circle, depth → TSDF) or ``hemisphere6`` (GraspNeRF's six views, SfS)."""
     view_planner: str = "oracle"
     """View planner of ``heapgrasp``: ``oracle`` (exact eq. 14 from the true meshes),
@@ -124,6 +124,11 @@ class RunConfig:
     """γ2 of eq. 18 for the first view waypoint."""
     gamma2: float = 0.35
     """γ2 of eq. 18 for the following view waypoints."""
+    oracle_frames: int = 10
+    """Silhouettes per hypothetical path ``f(p̄^ℓ, p̄^{u,v})`` when the oracle scores a
+    candidate (eq. 14), evenly spaced along the path. The real capture takes about 30
+    per 0.25 m; fewer underestimate how much a long path carves. The oracle's time
+    grows in proportion (``docs/benchmarks.md`` measures 10 and 40)."""
     initial_radius: float = 0.5
     """Distance of the initial camera pose p⁰ from the bottom centre of the scene (m).
 
@@ -139,6 +144,12 @@ class RunConfig:
     at this azimuth too."""
     circle_theta: float = math.pi / 5
     """Polar angle of the circle baselines' waypoints (rad)."""
+    circle_closed: bool = True
+    """The circle baselines (``no-vp``, ``vgn``, ``view_planner = "circle"``) go once
+    around the scene: their L waypoints from p⁰'s azimuth, then back to the first.
+    Table II's 1.87 m for both baselines needs the full circle (L = 3 waypoints
+    without the way back give 1.4 m; ``docs/benchmarks.md``). False stops at the L-th
+    waypoint (240° of the circle for L = 3)."""
     hemisphere_radius: float = 0.5
     hemisphere_theta: float = math.pi / 6
     hemisphere_views: int = 6
@@ -217,7 +228,15 @@ class RunConfig:
         at_least("resolution", 8)
         if self.resolution > 512:
             raise ConfigError(f"resolution: must be <= 512; got {self.resolution}")
-        for name in ("U", "V", "L", "nms_window", "hemisphere_views", "max_attempts"):
+        for name in (
+            "U",
+            "V",
+            "L",
+            "nms_window",
+            "hemisphere_views",
+            "max_attempts",
+            "oracle_frames",
+        ):
             at_least(name, 1)
 
     # ------------------------------------------------------------------ building

@@ -142,6 +142,7 @@ class Pipeline:
             self.sphere,
             L=cfg.L,
             circle_theta=cfg.circle_theta,
+            circle_closed=cfg.circle_closed,
             phi0=cfg.initial_phi,
             rng=self.rng,
             hemisphere_radius=cfg.hemisphere_radius,
@@ -409,7 +410,7 @@ def make_view_scorer(config: RunConfig) -> ViewScorer | None:
     if config.method != "heapgrasp" or config.view_planner in ("circle", "hemisphere6"):
         return None
     if config.view_planner == "oracle":
-        return OracleViewScorer()
+        return OracleViewScorer(frames_per_candidate=config.oracle_frames)
     from heapgrasp.viewplan_network import NetworkViewScorer
 
     return NetworkViewScorer(_weights(config.view_weights, "view", "view_weights"))

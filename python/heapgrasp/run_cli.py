@@ -58,8 +58,8 @@ def add_parser(
         "a summary table. Defaults are Table I of the paper; precedence: defaults < "
         "--config < flags < --set.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="methods: heapgrasp = view planning (eq. 12-19) + SfS; no-vp = L waypoints "
-        "on a circle + SfS; vgn = circle + depth/TSDF (simulated depth failures on "
+        epilog="methods: heapgrasp = view planning (eq. 12-19) + SfS; no-vp = once around a "
+        "circle of L waypoints + SfS; vgn = circle + depth/TSDF (simulated depth failures on "
         "transparent and specular objects); hemisphere6 = GraspNeRF's six views + SfS.\n"
         "example: heapgrasp run --method no-vp --category transparent --scenes 5 --out runs/t",
     )

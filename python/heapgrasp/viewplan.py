@@ -10,7 +10,7 @@ the current grid; :func:`heapgrasp.selection.select_next_waypoint` then applies 
 * ``heapgrasp.viewplan_network.NetworkViewScorer`` — the view network (eq. 13).
 
 The baselines use fixed waypoints instead (:func:`fixed_waypoints`): ``circle`` ("w/o
-VP" and VGN: L waypoints evenly spaced around the scene) and ``hemisphere6``
+VP" and VGN: L waypoints evenly spaced around the scene, once around) and ``hemisphere6``
 (GraspNeRF: six waypoints on a hemisphere centred in the workspace, r = 0.5 m,
 θ = π/6, φ ~ U(0, 2π), looking at the workspace centre).
 """
@@ -149,6 +149,7 @@ def fixed_waypoints(
     *,
     L: int = 3,
     circle_theta: float = math.pi / 5,
+    circle_closed: bool = True,
     phi0: float = 0.0,
     rng: np.random.Generator | None = None,
     hemisphere_radius: float = 0.5,
@@ -156,10 +157,11 @@ def fixed_waypoints(
     hemisphere_views: int = 6,
 ) -> F64:
     """Waypoints of the fixed-view baselines: ``"circle"`` (L evenly spaced at polar
-    angle ``circle_theta``) or ``"hemisphere6"`` (GraspNeRF; random azimuths from
-    ``rng``, visited in increasing azimuth)."""
+    angle ``circle_theta`` from azimuth ``phi0``, then back to the first when
+    ``circle_closed``: once around the scene) or ``"hemisphere6"`` (GraspNeRF; random
+    azimuths from ``rng``, visited in increasing azimuth)."""
     if kind == "circle":
-        return circle_waypoints(sphere, L=L, theta=circle_theta, phi0=phi0)
+        return circle_waypoints(sphere, L=L, theta=circle_theta, phi0=phi0, closed=circle_closed)
     if kind == "hemisphere6":
         return hemisphere_waypoints(
             rng if rng is not None else np.random.default_rng(0),

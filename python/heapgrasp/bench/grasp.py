@@ -11,8 +11,8 @@ one attempt per scene and grid. Grids (``--grids``):
 ``circle``
     The no-vp protocol (HEAPGrasp w/o VP): a capture at the initial pose p⁰ (0.5 m
     from the scene on its −y side), then
-    L = 3 waypoints at θ = π/5 on the r = 0.33 m view sphere of the 0.30 m cube,
-    capturing continuously along the ruckig-timed path
+    once around the circle of L = 3 waypoints at θ = π/5 on the r = 0.33 m view sphere
+    of the 0.30 m cube, capturing continuously along the ruckig-timed path
     (:meth:`heapgrasp.pipeline.Pipeline.plan` of a ``no-vp`` run).
 ``dense``
     An upper bound for Shape from Silhouette: 129 still views, one from the top and

@@ -916,6 +916,7 @@ def circle_waypoints(
     L: int = 3,
     theta: float = math.pi / 5,
     phi0: float = 0.0,
+    closed: bool = False,
 ) -> FloatArray:
     """VGN / "HEAPGrasp w/o VP" baseline: ``L`` waypoints evenly spaced around the scene.
 
@@ -929,15 +930,19 @@ def circle_waypoints(
         Constant polar angle (rad); default ``pi / 5`` (``theta_max`` of Table I).
     phi0 : float, optional
         Azimuth of the first waypoint (rad).
+    closed : bool, optional
+        Go once around the scene: append the first waypoint again (at ``phi0 + 2 pi``),
+        so the camera circles the scene fully and ends where it joined the circle.
 
     Returns
     -------
-    numpy.ndarray, shape (L, 4, 4)
-        Poses at ``phi = phi0 + 2 pi l / L``, ``l = 0 .. L-1``.
+    numpy.ndarray, shape (L, 4, 4), or (L + 1, 4, 4) when ``closed``
+        Poses at ``phi = phi0 + 2 pi l / L``, ``l = 0 .. L-1`` (``.. L`` when closed).
     """
     if int(L) < 1:
         raise InvalidValueError(f"L: must be >= 1, got {L}")
-    phi = float(phi0) + 2.0 * math.pi * np.arange(int(L), dtype=np.float64) / int(L)
+    n = int(L) + 1 if closed else int(L)
+    phi = float(phi0) + 2.0 * math.pi * np.arange(n, dtype=np.float64) / int(L)
     eyes = sphere.center_array + sphere.radius * _unit_directions(
         phi, np.full_like(phi, float(theta))
     )
