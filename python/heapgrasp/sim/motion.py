@@ -932,16 +932,17 @@ def circle_waypoints(
         Azimuth of the first waypoint (rad).
     closed : bool, optional
         Go once around the scene: append the first waypoint again (at ``phi0 + 2 pi``),
-        so the camera circles the scene fully and ends where it joined the circle.
+        so the camera circles the scene fully and ends where it joined the circle. A
+        single waypoint (``L = 1``) has no circle to close and is returned alone.
 
     Returns
     -------
-    numpy.ndarray, shape (L, 4, 4), or (L + 1, 4, 4) when ``closed``
+    numpy.ndarray, shape (L, 4, 4), or (L + 1, 4, 4) when ``closed`` and ``L > 1``
         Poses at ``phi = phi0 + 2 pi l / L``, ``l = 0 .. L-1`` (``.. L`` when closed).
     """
     if int(L) < 1:
         raise InvalidValueError(f"L: must be >= 1, got {L}")
-    n = int(L) + 1 if closed else int(L)
+    n = int(L) + 1 if closed and int(L) > 1 else int(L)
     phi = float(phi0) + 2.0 * math.pi * np.arange(n, dtype=np.float64) / int(L)
     eyes = sphere.center_array + sphere.radius * _unit_directions(
         phi, np.full_like(phi, float(theta))
