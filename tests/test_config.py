@@ -31,6 +31,7 @@ def test_defaults_are_table_one() -> None:
         ({"noise": 0.7}, "noise: must be in"),
         ({"epsilon": float("nan")}, "epsilon"),
         ({"oracle_frames": 0}, "oracle_frames: must be an integer >= 1; got 0"),
+        ({"target_radius": -0.05}, r"target_radius: must be in \[0.0, 1.0\]; got -0.05"),
         ({"circle_closed": 1}, "circle_closed must be of type bool"),
         ({"lamda": 0.9}, "unknown parameter 'lamda'"),
         ({"Theta-Max": 0.5}, "did you mean 'theta_max'"),
@@ -82,6 +83,7 @@ def test_the_oracle_scores_with_the_configured_number_of_silhouettes() -> None:
     from heapgrasp.pipeline import make_view_scorer
     from heapgrasp.viewplan import OracleViewScorer
 
-    scorer = make_view_scorer(RunConfig(oracle_frames=40))
+    scorer = make_view_scorer(RunConfig(oracle_frames=40, target_radius=0.05))
     assert isinstance(scorer, OracleViewScorer) and scorer.frames_per_candidate == 40
+    assert scorer.target_radius == 0.05
     assert make_view_scorer(RunConfig(method="no-vp", oracle_frames=40)) is None

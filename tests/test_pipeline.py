@@ -78,11 +78,16 @@ def test_a_phase_starts_beside_the_scene_looking_at_it(tmp_path: Path) -> None:
 
 
 class _ScriptedViews:
-    """A view scorer that prefers nothing (all zeros)."""
+    """A view scorer that prefers nothing (all zeros) and records the targets it is
+    given."""
 
     name = "flat"
 
+    def __init__(self) -> None:
+        self.targets: list[Any] = []
+
     def scores(self, ctx: Any) -> Any:
+        self.targets.append(None if ctx.target is None else ctx.target[:3, 3].copy())
         return np.zeros(ctx.candidates.shape[:2], dtype=np.float32)
 
 
@@ -105,12 +110,17 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
     ]
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        pipeline = build_pipeline(RunConfig(), world, view_scorer=_ScriptedViews())
+        views = _ScriptedViews()
+        pipeline = build_pipeline(RunConfig(), world, view_scorer=views)
         calls = iter(script)
         pipeline.grasp_candidates = lambda: next(calls)  # type: ignore[method-assign]
         result = pipeline.plan()
     targets = [w["target"]["position"][0] for w in result.extra["waypoints"]]
     assert targets == pytest.approx([0.05, 0.25, 0.24])
+    # The view scorer sees the target of eq. 16 (for the oracle's target column), but
+    # not p0's, which is unreliable (gamma2 = 0).
+    assert views.targets[0] is None
+    assert [t[0] for t in views.targets[1:]] == pytest.approx([0.25, 0.24])
     assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.24)
 
 

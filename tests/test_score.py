@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import reference as ref
 from conftest import ring_poses
+from heapgrasp.viewplan import target_region
 
 ORIGIN, SIZE = (-0.15, -0.15, 0.0), 0.30
 
@@ -123,3 +124,45 @@ def test_score_does_not_modify_grid(box_scene, camera):
     hg.score_views(grid, scene, camera, trajectories(6, 3, seed=1), lam=0.9)
     for a, b in zip(grid.counts(), before, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def high_confidence_in(grid, region, lam):
+    return int(((grid.occupancy() >= lam) & (grid.counts()[0] > 0) & region).sum())
+
+
+def test_region_restricts_both_counts(box_scene, camera):
+    scene, _ = box_scene
+    grid = observed_grid(scene, camera, ring_poses(2, radius=0.5, jitter=0.5, seed=1))
+    trajs = trajectories(10, 3, seed=11)
+    r = grid.resolution
+    everywhere = np.ones((r, r, r), dtype=bool)
+    np.testing.assert_array_equal(
+        hg.score_views(grid, scene, camera, trajs, region=everywhere),
+        hg.score_views(grid, scene, camera, trajs),
+    )
+    # the column over the first box (centred near (0.03, -0.02))
+    column = target_region(grid, (0.03, -0.02, 0.0), 0.05)
+    assert 0 < column.sum() < column.size
+    before = high_confidence_in(grid, column, 0.9)
+    assert before > 0
+    scores = hg.score_views(grid, scene, camera, trajs, region=column.astype(np.uint8))
+    for t, s in zip(trajs, scores, strict=True):
+        g = grid.copy()
+        g.integrate_many(np.stack([scene.render_mask(camera, p) for p in t]), camera, t)
+        expected = np.float32(1) - np.float32(high_confidence_in(g, column, 0.9)) / np.float32(
+            before
+        )
+        assert s == pytest.approx(expected, abs=1e-6)
+    assert not np.array_equal(scores, hg.score_views(grid, scene, camera, trajs))
+
+
+def test_region_without_measured_volume_scores_zero_and_bad_regions_raise(box_scene, camera):
+    scene, _ = box_scene
+    grid = observed_grid(scene, camera, ring_poses(2, jitter=0.5, seed=2))
+    trajs = trajectories(3, 2, seed=4)
+    r = grid.resolution
+    assert not hg.score_views(grid, scene, camera, trajs, region=np.zeros((r,) * 3, bool)).any()
+    with pytest.raises(hg.ShapeError, match="region"):
+        hg.score_views(grid, scene, camera, trajs, region=np.ones((r, r, r - 1), bool))
+    with pytest.raises(hg.ShapeError, match="region"):
+        hg.score_views(grid, scene, camera, trajs, region=np.ones((r, r, r), np.float32))

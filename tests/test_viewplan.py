@@ -9,7 +9,13 @@ import pytest
 from heapgrasp import MeshScene, OccupancyGrid
 from heapgrasp.sim.camera import CameraSpec
 from heapgrasp.sim.motion import ViewSphere, interpolate
-from heapgrasp.viewplan import OracleViewScorer, ViewContext, fixed_waypoints, subsample_path
+from heapgrasp.viewplan import (
+    OracleViewScorer,
+    ViewContext,
+    fixed_waypoints,
+    subsample_path,
+    target_region,
+)
 from reference import box_mesh
 
 
@@ -86,3 +92,58 @@ def test_fixed_waypoints() -> None:
     np.testing.assert_allclose(h6[:, 2, 3], sphere.target[2] + 0.5 * math.cos(math.pi / 6))
     with pytest.raises(ValueError, match="kind"):
         fixed_waypoints("spiral", sphere)
+
+
+def test_target_region_is_the_column_over_the_target() -> None:
+    grid = OccupancyGrid((0.0, 0.0, 0.0), 0.30, 20)
+    col = target_region(grid, (0.15, 0.15, 0.9), 0.03)
+    assert col.shape == (20, 20, 20) and col.dtype == np.bool_
+    assert np.all(col == col[:, :, :1]), "a vertical column: the same in every layer"
+    centres = (np.arange(20) + 0.5) * 0.015
+    d = np.hypot(centres[:, None] - 0.15, centres[None, :] - 0.15)
+    np.testing.assert_array_equal(col[:, :, 0], d <= 0.03)
+    for bad in ((0.1, 0.1), (0.1, np.nan, 0.0)):
+        with pytest.raises(ValueError, match="position"):
+            target_region(grid, bad, 0.03)
+    with pytest.raises(ValueError, match="radius"):
+        target_region(grid, (0.1, 0.1, 0.0), 0.0)
+    with pytest.raises(ValueError, match="target_radius"):
+        OracleViewScorer(target_radius=-0.1)
+
+
+def test_target_column_oracle_favours_views_of_the_target() -> None:
+    # A small target box beside a big one, seen from the top only. Over the whole grid
+    # the views above the big box's side carve the most; on the target's column, the
+    # views from the far side, which see the small box obliquely, do.
+    scene = MeshScene()
+    for half, centre in (
+        ((0.02, 0.02, 0.03), (0.06, 0.15, 0.03)),
+        ((0.05, 0.05, 0.05), (0.22, 0.15, 0.05)),
+    ):
+        v, f = box_mesh(half)
+        pose = np.eye(4)
+        pose[:3, 3] = centre
+        scene.add_mesh(v, f, pose)
+    sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.30)
+    camera = CameraSpec.continuous()
+    start = sphere.pose(0.0, 0.0)
+    grid = OccupancyGrid((0.0, 0.0, 0.0), 0.30, 40)
+    grid.integrate(scene.render_mask(camera.core(), start), camera.core(), start)
+    far, near = sphere.pose(0.0, math.pi / 5), sphere.pose(math.pi, math.pi / 5)
+    cands = np.stack([far, near])[:, None]
+    target = np.eye(4)
+    target[:3, 3] = (0.06, 0.15, 0.05)
+    oracle = OracleViewScorer(frames_per_candidate=4, target_radius=0.04)
+    whole = oracle.scores(ViewContext(grid, start, cands, sphere, camera, 0.9, scene))
+    column = oracle.scores(ViewContext(grid, start, cands, sphere, camera, 0.9, scene, target))
+    assert whole[1, 0] > whole[0, 0], "globally the near view carves more"
+    assert column[0, 0] > column[1, 0] + 0.1, "on the target's column the far view does"
+    # the column scores are eq. 14 counted on target_region
+    plain = OracleViewScorer(frames_per_candidate=4)
+    assert oracle.region(ViewContext(grid, start, cands, sphere, camera, 0.9, scene)) is None
+    np.testing.assert_array_equal(
+        whole, plain.scores(ViewContext(grid, start, cands, sphere, camera, 0.9, scene))
+    )
+    region = oracle.region(ViewContext(grid, start, cands, sphere, camera, 0.9, scene, target))
+    assert region is not None
+    np.testing.assert_array_equal(region, target_region(grid, target[:3, 3], 0.04))

@@ -60,6 +60,7 @@ class UnknownMeshError(HeapgraspError):
     """A mesh id that the scene does not hold."""
 
 _Mask2 = npt.NDArray[np.bool_] | npt.NDArray[np.uint8]
+_Mask3 = npt.NDArray[np.bool_] | npt.NDArray[np.uint8]
 _F64 = npt.NDArray[np.float64]
 _F32 = npt.NDArray[np.float32]
 _U32 = npt.NDArray[np.uint32]
@@ -191,13 +192,16 @@ def score_views(
     camera: PinholeCamera,
     trajectories: Sequence[_F64],
     lam: float = 0.9,
+    region: _Mask3 | None = None,
 ) -> _F32:
     """Exact eq. 14 score of each candidate trajectory (``(M_k, 4, 4)`` poses), float32 (K,).
 
     ``1 - #high-confidence after / #high-confidence before`` (float32 arithmetic),
     rendering the hypothetical masks from ``scene``. All zeros when the grid has no
     high-confidence voxel. Scores can be negative: voxels never seen before can become
-    high-confidence when a new view segments them.
+    high-confidence when a new view segments them. With ``region`` (an ``(R, R, R)``
+    bool or uint8 mask) both counts are restricted to its voxels; all zeros when it holds
+    no high-confidence voxel.
     """
 
 def gaussian_filter3d(volume: _F32, sigma: float) -> _F32:

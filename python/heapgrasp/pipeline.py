@@ -251,6 +251,7 @@ class Pipeline:
                 target = select_target(cands, target, cfg.gamma1)
                 t1 = time.perf_counter()
                 assert isinstance(self.perception, SilhouettePerception)
+                gamma2 = cfg.gamma2_first if ell == 0 else cfg.gamma2
                 ctx = ViewContext(
                     self.perception.grid,
                     current,
@@ -259,10 +260,11 @@ class Pipeline:
                     self.camera,
                     cfg.lam,
                     self.world.object_scene,
+                    # A target planned where gamma2 = 0 is unreliable (§VI-B): no region.
+                    target=None if target is None or gamma2 == 0.0 else target.pose,
                 )
                 scores = self.view_scorer.scores(ctx)
                 t2 = time.perf_counter()
-                gamma2 = cfg.gamma2_first if ell == 0 else cfg.gamma2
                 u, v = select_next_waypoint(
                     scores,
                     self.candidates,
@@ -410,7 +412,9 @@ def make_view_scorer(config: RunConfig) -> ViewScorer | None:
     if config.method != "heapgrasp" or config.view_planner in ("circle", "hemisphere6"):
         return None
     if config.view_planner == "oracle":
-        return OracleViewScorer(frames_per_candidate=config.oracle_frames)
+        return OracleViewScorer(
+            frames_per_candidate=config.oracle_frames, target_radius=config.target_radius
+        )
     from heapgrasp.viewplan_network import NetworkViewScorer
 
     return NetworkViewScorer(_weights(config.view_weights, "view", "view_weights"))

@@ -6,7 +6,16 @@ the current grid; :func:`heapgrasp.selection.select_next_waypoint` then applies 
 * :class:`OracleViewScorer` — the exact eq. 14 score of each candidate: the grid is
   hypothetically carved with the silhouettes of the simulator's true meshes seen along
   ``f(p̄^ℓ, p̄^{u,v})`` (Rust :func:`heapgrasp.score_views`). An upper bound the paper
-  never had, and the label generator of the learned scorer (Algorithm 1).
+  never had, and the label generator of the learned scorer (Algorithm 1). With
+  ``target_radius > 0`` it scores the *target column* instead (:func:`target_region`):
+  eq. 14 counted only on the voxels within ``target_radius`` (horizontally) of the target
+  grasp ``p^ℓ_grasp`` of eq. 16, i.e. the share of the target's measured volume a
+  candidate would carve. Views within θ_max of the vertical leave a roof of phantom
+  volume on top of each object (as high as 0.7 × its width even from all around; up to
+  1.4 × from one side), and a grasp planned on the roof closes above the object; the
+  global eq. 14 spreads the gain over the whole scene, so the views that would carve the
+  target's roof rank no higher than the ones that refine objects never grasped in this
+  phase. Not in the paper; ``target_radius = 0`` is its eq. 14.
 * ``heapgrasp.viewplan_network.NetworkViewScorer`` — the view network (eq. 13).
 
 The baselines use fixed waypoints instead (:func:`fixed_waypoints`): ``circle`` ("w/o
@@ -39,6 +48,7 @@ __all__ = [
     "ViewScorer",
     "fixed_waypoints",
     "subsample_path",
+    "target_region",
 ]
 
 F32 = npt.NDArray[np.float32]
@@ -60,6 +70,10 @@ class ViewContext:
     lam: float
     scene: MeshScene | None = None
     """The true meshes at their current poses (only the oracle may use them)."""
+    target: F64 | None = None
+    """``(4, 4)`` pose of the target grasp ``p^ℓ_grasp`` (eq. 16) the next waypoint is
+    chosen for, or None (no candidate, or the first waypoint, where γ2 = 0 because the
+    grasps are unreliable)."""
 
 
 @runtime_checkable
@@ -88,6 +102,24 @@ def subsample_path(poses: F64, n: int) -> F64:
     return np.asarray(poses[idx], dtype=np.float64)
 
 
+def target_region(
+    grid: OccupancyGrid, position: npt.ArrayLike, radius: float
+) -> npt.NDArray[np.bool_]:
+    """The voxels whose centre lies within ``radius`` (m) of ``position`` in x–y: the
+    vertical column over a target grasp, roof and all, as an ``(R, R, R)`` mask."""
+    p = np.asarray(position, dtype=np.float64).reshape(-1)
+    if p.shape != (3,) or not np.isfinite(p).all():
+        raise ValueError(f"position must be 3 finite numbers, got {position!r}")
+    if not (math.isfinite(radius) and radius > 0):
+        raise ValueError(f"radius must be > 0, got {radius!r}")
+    r = grid.resolution
+    centres = (np.arange(r) + 0.5) * grid.voxel_size
+    ox, oy, _ = grid.origin
+    d2 = (centres[:, None] + ox - p[0]) ** 2 + (centres[None, :] + oy - p[1]) ** 2
+    column = d2 <= radius * radius
+    return np.ascontiguousarray(np.broadcast_to(column[:, :, None], (r, r, r)))
+
+
 class OracleViewScorer:
     """Exact eq. 14 scores from the true meshes (see the module docstring).
 
@@ -98,17 +130,33 @@ class OracleViewScorer:
         length (the real capture at 30 fps takes more; the score saturates well before).
     step
         Sample spacing of the interpolated path (m).
+    target_radius
+        When > 0 and the context has a target grasp, eq. 14 is counted on the column of
+        this radius (m) around it (:func:`target_region`); 0 is the paper's eq. 14 over
+        the whole grid.
     """
 
     name = "oracle"
 
-    def __init__(self, frames_per_candidate: int = 10, step: float = 0.01) -> None:
+    def __init__(
+        self, frames_per_candidate: int = 10, step: float = 0.01, target_radius: float = 0.0
+    ) -> None:
         if frames_per_candidate < 1:
             raise ValueError(f"frames_per_candidate must be >= 1, got {frames_per_candidate}")
         if not step > 0:
             raise ValueError(f"step must be > 0, got {step}")
+        if not (math.isfinite(target_radius) and target_radius >= 0):
+            raise ValueError(f"target_radius must be >= 0, got {target_radius!r}")
         self.frames_per_candidate = int(frames_per_candidate)
         self.step = float(step)
+        self.target_radius = float(target_radius)
+
+    def region(self, ctx: ViewContext) -> npt.NDArray[np.bool_] | None:
+        """The voxels eq. 14 is counted on: the target column, or None (all)."""
+        if self.target_radius <= 0 or ctx.target is None:
+            return None
+        target = np.asarray(ctx.target, dtype=np.float64)
+        return target_region(ctx.grid, target[:3, 3], self.target_radius)
 
     def trajectories(self, ctx: ViewContext) -> list[F64]:
         """The hypothetical frames of every candidate, flattened ``u``-major."""
@@ -134,7 +182,14 @@ class OracleViewScorer:
         sub = ViewContext(
             ctx.grid, ctx.current_pose, keep[:, None], ctx.sphere, ctx.camera, ctx.lam, ctx.scene
         )
-        s = score_views(ctx.grid, ctx.scene, ctx.camera.core(), self.trajectories(sub), ctx.lam)
+        s = score_views(
+            ctx.grid,
+            ctx.scene,
+            ctx.camera.core(),
+            self.trajectories(sub),
+            ctx.lam,
+            region=self.region(ctx),
+        )
         if top and v > 1:
             out = np.empty((u, v), dtype=np.float32)
             out[:, 0] = s[0]

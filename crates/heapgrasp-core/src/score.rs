@@ -7,6 +7,11 @@
 //! When the current grid has no high-confidence voxel, eq. 14 is undefined; every score
 //! is then 0 (no candidate can be ranked by measurement gain).
 //!
+//! [`score_views_in`] restricts both counts to a region of interest `R` (e.g. the column
+//! around HEAPGrasp's target grasp): `s_k = 1 − #(Ŝ_{≥λ} ∩ R)(after) / #(Ŝ_{≥λ} ∩ R)(before)`,
+//! the share of the region's measured volume a candidate would carve. With `R` the whole
+//! grid it is eq. 14.
+//!
 //! # Why it is fast, and still exact
 //! - A voxel with counts `(s, v)` can end high-confidence after `M` more frames only if
 //!   `(s + M) / (v + M) >= λ` (occupancy can at best rise to that), so only those voxels
@@ -58,7 +63,35 @@ pub fn score_views(
     trajectories: &[Vec<Pose>],
     lam: f64,
 ) -> Result<Vec<f32>> {
+    score_views_in(grid, scene, camera, trajectories, lam, None)
+}
+
+/// Eq. 14 with both counts restricted to `region` (one flag per voxel, in the grid's
+/// flat order; `None`: the whole grid, i.e. [`score_views`]). All zeros when the region
+/// holds no high-confidence voxel.
+///
+/// # Errors
+/// As [`score_views`], and [`Error::Shape`] for a region whose length is not the grid's
+/// voxel count.
+pub fn score_views_in(
+    grid: &OccupancyGrid,
+    scene: &MeshScene,
+    camera: &PinholeCamera,
+    trajectories: &[Vec<Pose>],
+    lam: f64,
+    region: Option<&[bool]>,
+) -> Result<Vec<f32>> {
     let lam = crate::occupancy::check_lambda(lam)?;
+    if let Some(r) = region {
+        let n = grid.spec().voxel_count();
+        if r.len() != n {
+            return Err(Error::shape(
+                "region",
+                format!("{n} voxels"),
+                format!("{} voxels", r.len()),
+            ));
+        }
+    }
     for (k, t) in trajectories.iter().enumerate() {
         if t.is_empty() || t.len() > MAX_TRAJECTORY_FRAMES {
             return Err(Error::value(
@@ -68,13 +101,23 @@ pub fn score_views(
             ));
         }
     }
-    let before = grid.count_high_confidence(lam);
-    if before == 0 || trajectories.is_empty() {
-        return Ok(vec![0.0; trajectories.len()]);
-    }
     let max_m = trajectories.iter().map(Vec::len).max().unwrap_or(0) as u32;
     let max_v = grid.visible().iter().copied().max().unwrap_or(0);
     let table = HighConfidenceTable::new(lam, max_v + max_m);
+    let in_region = |i: usize| region.is_none_or(|r| r[i]);
+    let before = match region {
+        None => grid.count_high_confidence(lam),
+        Some(r) => grid
+            .segmented()
+            .iter()
+            .zip(grid.visible())
+            .zip(r)
+            .filter(|&((&s, &v), &inside)| inside && table.contains(s, v))
+            .count(),
+    };
+    if before == 0 || trajectories.is_empty() {
+        return Ok(vec![0.0; trajectories.len()]);
+    }
     let spec = grid.spec();
     let mut tracked = Tracked {
         flat: Vec::new(),
@@ -83,7 +126,7 @@ pub fn score_views(
         vis: Vec::new(),
     };
     for (i, (&s, &v)) in grid.segmented().iter().zip(grid.visible()).enumerate() {
-        if table.contains(s + max_m, v + max_m) {
+        if in_region(i) && table.contains(s + max_m, v + max_m) {
             let [a, b, c] = spec.unflatten(i);
             tracked.flat.push(i as u32);
             tracked.abc.push([a as f32, b as f32, c as f32]);
@@ -402,6 +445,69 @@ mod tests {
                 "candidate {k}"
             );
         }
+    }
+
+    /// The region's definition: high-confidence voxels inside it, before and after.
+    fn reference_in(
+        grid: &OccupancyGrid,
+        scene: &MeshScene,
+        cam: &PinholeCamera,
+        poses: &[Pose],
+        lam: f32,
+        region: &[bool],
+    ) -> f32 {
+        let count = |g: &OccupancyGrid| {
+            let table = HighConfidenceTable::new(lam, 1 << 12);
+            g.segmented()
+                .iter()
+                .zip(g.visible())
+                .zip(region)
+                .filter(|&((&s, &v), &r)| r && table.contains(s, v))
+                .count() as f32
+        };
+        let mut g = grid.clone();
+        let masks: Vec<u8> = poses
+            .iter()
+            .flat_map(|p| scene.render_mask(cam, p))
+            .collect();
+        g.integrate_many(cam, poses, &masks).unwrap();
+        1.0 - count(&g) / count(grid)
+    }
+
+    #[test]
+    fn region_scores_count_only_the_region() {
+        let (grid, scene, cam) = setup();
+        let spec = grid.spec();
+        let trajectories: Vec<Vec<Pose>> = (0..8)
+            .map(|k| ring(4, 0.3 + 0.01 * k as f64, 0.2 + 0.02 * k as f64, k as f64))
+            .collect();
+        let all = vec![true; spec.voxel_count()];
+        assert_eq!(
+            score_views_in(&grid, &scene, &cam, &trajectories, 0.9, Some(&all)).unwrap(),
+            score_views(&grid, &scene, &cam, &trajectories, 0.9).unwrap()
+        );
+        // The upper half of the grid: the region above the box, where the first view
+        // leaves most of its volume.
+        let upper: Vec<bool> = (0..spec.voxel_count())
+            .map(|i| spec.unflatten(i)[2] >= 2)
+            .collect();
+        let scores = score_views_in(&grid, &scene, &cam, &trajectories, 0.9, Some(&upper)).unwrap();
+        for (k, t) in trajectories.iter().enumerate() {
+            assert_eq!(
+                scores[k],
+                reference_in(&grid, &scene, &cam, t, 0.9, &upper),
+                "candidate {k}"
+            );
+        }
+        let whole = score_views(&grid, &scene, &cam, &trajectories, 0.9).unwrap();
+        assert_ne!(scores, whole, "a region must change the scores");
+        // A region without measured volume scores zero; a wrong length is an error.
+        let none = vec![false; spec.voxel_count()];
+        assert_eq!(
+            score_views_in(&grid, &scene, &cam, &trajectories, 0.9, Some(&none)).unwrap(),
+            vec![0.0; trajectories.len()]
+        );
+        assert!(score_views_in(&grid, &scene, &cam, &trajectories, 0.9, Some(&none[1..])).is_err());
     }
 
     #[test]
