@@ -17,7 +17,7 @@ from heapgrasp.bench.grasp import (
     summarize,
 )
 from heapgrasp.cli import build_parser, main
-from heapgrasp.config import ConfigError
+from heapgrasp.config import ConfigError, RunConfig
 from heapgrasp.sim.motion import ViewSphere
 
 
@@ -36,6 +36,7 @@ def test_defaults() -> None:
     )
     assert args.grids == GRIDS
     assert args.epsilon is None and args.sigma is None  # the planner's own, at run time
+    assert args.roof_radius == RunConfig().roof_radius  # the pipeline's
     assert args.out is None and not args.quiet
 
 
@@ -43,11 +44,12 @@ def test_options_are_parsed() -> None:
     args = _parse(
         "--scenes", "3", "--seed", "7", "--layout", "packed", "--objects", "4",
         "--category", "opaque", "--grids", "dense, circle", "--epsilon", "0.6",
-        "--sigma", "0", "--out", "x", "--quiet",
+        "--sigma", "0", "--out", "x", "--quiet", "--roof-radius", "0",
     )  # fmt: skip
     assert (args.scenes, args.seed, args.layout, args.objects) == (3, 7, "packed", 4)
     assert args.category == "opaque" and args.grids == ("circle", "dense")
     assert (args.epsilon, args.sigma, args.out, args.quiet) == (0.6, 0.0, Path("x"), True)
+    assert args.roof_radius == 0.0
     assert _parse("--grids", "dense").grids == ("dense",)
 
 
@@ -63,6 +65,7 @@ def test_options_are_parsed() -> None:
         (["--epsilon", "1.5"], "got 1.5"),
         (["--sigma", "-0.5"], "got -0.5"),
         (["--sigma", "nan"], "got nan"),
+        (["--roof-radius", "-0.01"], "got -0.01"),
         (["--layout", "heap"], "'heap'"),
         (["--category", "glass"], "'glass'"),
     ],
@@ -152,6 +155,7 @@ def test_one_scene_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     config = data["config"]
     assert config["grids"] == ["circle"] and config["scenes"] == 1
     assert (config["epsilon"], config["sigma"]) == (0.4, 0.5)  # AntipodalPlanner's own
+    assert config["roof_radius"] == RunConfig().roof_radius
     assert set(data["summary"]) == {"circle"}
     s = data["summary"]["circle"]
     assert s["errors"] == 0

@@ -11,6 +11,7 @@ import pytest
 from conftest import box_model
 from heapgrasp.config import ConfigError, RunConfig
 from heapgrasp.grasping.volumes import GraspCandidate
+from heapgrasp.perception import SilhouettePerception
 from heapgrasp.pipeline import build_pipeline
 from heapgrasp.run import RESULTS_FILE, SCENES_FILE, RunExistsError, load_records, run
 from heapgrasp.sim.objects import ObjectLibrary
@@ -75,6 +76,11 @@ def test_a_phase_starts_beside_the_scene_looking_at_it(tmp_path: Path) -> None:
             RunConfig(method="no-vp", initial_radius=0.33, initial_theta=0.0), world
         ).initial_pose()
         np.testing.assert_allclose(top, pipeline.sphere.pose(0.0, 0.0), atol=1e-12)
+        # the silhouette hull's roofs are trimmed for the planner as configured
+        assert isinstance(pipeline.perception, SilhouettePerception)
+        assert pipeline.perception.roof_radius == RunConfig().roof_radius > 0
+        raw = build_pipeline(RunConfig(method="no-vp", roof_radius=0.0), world).perception
+        assert isinstance(raw, SilhouettePerception) and raw.roof_radius == 0.0
 
 
 class _ScriptedViews:

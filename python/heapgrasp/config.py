@@ -97,6 +97,12 @@ class RunConfig:
     """N_x = N_y = N_z."""
     lam: float = 0.9
     """Occupancy threshold λ of the high-confidence grid."""
+    roof_radius: float = 0.0225
+    """Disc radius ρ (m) with which the roofs of the silhouette hull are trimmed before
+    grasp planning (:func:`heapgrasp.roofs.trim_roofs`; heapgrasp, no-vp and
+    hemisphere6); 0 gives the planner ``Ŝ≥λ`` as it is, as in the paper. Views within
+    θ_max of the vertical leave a roof on every object, and grasps planned on it close
+    above the object (``docs/benchmarks.md``)."""
     # -- grasp selection (eq. 15-17)
     epsilon: float | None = None
     """Grasp score threshold ε; None = the grasp planner's own (Table I's 0.8 for the VGN
@@ -209,6 +215,7 @@ class RunConfig:
         between("noise", 0.0, 0.5)
         between("failed_grasp_radius", 0.0, 1.0)
         between("target_radius", 0.0, 1.0)
+        between("roof_radius", 0.0, 1.0)
         between("theta_max", 0.0, math.pi / 2)
         between("initial_theta", 0.0, math.pi / 2)
         between("circle_theta", 0.0, math.pi / 2)

@@ -24,6 +24,7 @@ import numpy.typing as npt
 
 from heapgrasp import OccupancyGrid, PinholeCamera, TSDFVolume
 from heapgrasp.grasping.volumes import GridFrame
+from heapgrasp.roofs import trim_roofs
 from heapgrasp.sim.world import Frame
 
 __all__ = [
@@ -81,15 +82,22 @@ class NoisySegmenter:
 
 @dataclass
 class SilhouettePerception:
-    """Shape from Silhouette over every captured frame (eq. 9-10)."""
+    """Shape from Silhouette over every captured frame (eq. 9-10).
+
+    ``roof_radius`` > 0 trims the roofs of the grasp planner's input
+    (:func:`heapgrasp.roofs.trim_roofs`, disc radius in metres); 0 serves ``Ŝ≥λ`` as it
+    is."""
 
     frame: GridFrame
     segmenter: Segmenter = field(default_factory=IdealSegmenter)
     lam: float = 0.9
+    roof_radius: float = 0.0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.lam <= 1.0:
             raise ValueError(f"lam must be in [0, 1], got {self.lam}")
+        if not (np.isfinite(self.roof_radius) and self.roof_radius >= 0):
+            raise ValueError(f"roof_radius must be >= 0, got {self.roof_radius}")
         self.grid = OccupancyGrid(self.frame.origin, self.frame.size, self.frame.resolution)
         self.frames_seen = 0
 
@@ -113,8 +121,12 @@ class SilhouettePerception:
         return self.grid.occupancy()
 
     def grasp_input(self) -> F32:
-        """The high-confidence grid ``Ŝ≥λ``: the grasp planner's input."""
-        return self.grid.high_confidence(self.lam)
+        """The high-confidence grid ``Ŝ≥λ``, roofs trimmed when ``roof_radius`` > 0: the
+        grasp planner's input."""
+        high = self.grid.high_confidence(self.lam)
+        if self.roof_radius > 0:
+            return trim_roofs(high, self.grid.voxel_size, self.roof_radius)
+        return high
 
 
 def tsdf_occupancy(values: F32, weights: F32) -> F32:

@@ -116,7 +116,9 @@ class Pipeline:
             self.camera = (
                 CameraSpec.continuous() if cfg.camera == "continuous" else CameraSpec.still()
             )
-            self.perception = SilhouettePerception(self.frame, self.segmenter, cfg.lam)
+            self.perception = SilhouettePerception(
+                self.frame, self.segmenter, cfg.lam, roof_radius=cfg.roof_radius
+            )
         self.adaptive = cfg.method == "heapgrasp" and cfg.view_planner in ("oracle", "network")
         self.joint_path_errors = 0
         self.unreachable_waypoints = 0

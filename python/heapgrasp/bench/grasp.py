@@ -117,6 +117,9 @@ class GraspBenchConfig:
         are :class:`~heapgrasp.grasping.antipodal.AntipodalPlanner`'s own.
     nms_window : int
         Non-maximum-suppression window of :func:`select_candidates`.
+    roof_radius : float
+        Disc radius (m) with which both grids' roofs are trimmed before planning
+        (:func:`heapgrasp.roofs.trim_roofs`, as the pipeline does); 0 plans on ``Ŝ≥λ``.
     """
 
     scenes: int = 30
@@ -128,6 +131,7 @@ class GraspBenchConfig:
     epsilon: float = 0.4
     sigma: float = 0.5
     nms_window: int = 4
+    roof_radius: float = RunConfig.roof_radius
 
     def __post_init__(self) -> None:
         if not self.grids or any(g not in GRIDS for g in self.grids):
@@ -146,6 +150,7 @@ class GraspBenchConfig:
             epsilon=self.epsilon,
             sigma=self.sigma,
             nms_window=self.nms_window,
+            roof_radius=self.roof_radius,
         )
 
 
@@ -288,7 +293,9 @@ def _evaluate(
         perception = pipeline.perception
         hand = pipeline.robot
     elif kind == "dense":
-        perception = SilhouettePerception(frame, lam=run_config.lam)
+        perception = SilhouettePerception(
+            frame, lam=run_config.lam, roof_radius=run_config.roof_radius
+        )
         camera = (
             CameraSpec.continuous() if run_config.camera == "continuous" else CameraSpec.still()
         )
@@ -415,7 +422,8 @@ def markdown_table(summary: dict[str, dict[str, Any]], config: GraspBenchConfig)
         f"({config.layout}, {config.category}, seeds {config.seed}–{last})",
         "",
         f"AntipodalPlanner + select_candidates (ε = {config.epsilon:g}, σ = {config.sigma:g}, "
-        f"NMS window {config.nms_window}); top candidate executed with the free-flying "
+        f"NMS window {config.nms_window}) on grids with roofs trimmed at "
+        f"{config.roof_radius:g} m; top candidate executed with the free-flying "
         "Panda hand, one attempt per scene.",
         "",
         "| Grid | Scenes | With candidate | Attempts | Successes | Success (%) "
@@ -544,6 +552,7 @@ def run(args: argparse.Namespace) -> int:
         grids=args.grids,
         epsilon=defaults.epsilon if args.epsilon is None else args.epsilon,
         sigma=defaults.sigma if args.sigma is None else args.sigma,
+        roof_radius=args.roof_radius,
     )
     out: Path = args.out or Path("runs") / f"bench-grasp-{time.strftime('%Y%m%d-%H%M%S')}"
     out.mkdir(parents=True, exist_ok=True)
@@ -655,6 +664,16 @@ def add_parser(
         default=None,
         metavar="S",
         help="Gaussian σ (voxels) of select_candidates (default: AntipodalPlanner().sigma)",
+    )
+    p.add_argument(
+        "--roof-radius",
+        type=float_in(0.0, 1.0),
+        default=RunConfig.roof_radius,
+        metavar="R",
+        help=(
+            "disc radius (m) trimming the grids' roofs before planning, as the pipeline "
+            f"does (default {RunConfig.roof_radius}; 0: the untrimmed hull)"
+        ),
     )
     p.add_argument(
         "--out", type=Path, default=None, help="output directory (default runs/bench-grasp-<time>)"
