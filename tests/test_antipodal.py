@@ -192,6 +192,8 @@ def test_orientations_cover_top_down_and_tilted() -> None:
         ({"min_patch": 0}, "min_patch"),
         ({"min_contact_height": -1.0}, "min_contact_height"),
         ({"support_height": -1.0}, "support_height"),
+        ({"ledge_factor": 1.5}, "ledge_factor"),
+        ({"ledge_factor": math.nan}, "ledge_factor"),
         ({"epsilon": 1.5}, "epsilon"),
         ({"sigma": -1.0}, "sigma"),
         ({"gripper": "panda"}, "gripper"),
@@ -254,3 +256,19 @@ def test_a_carved_box_is_grasped_in_simulation(tmp_path: Path) -> None:
         result = execute_grasp(hand, Grasp(cands[0].pose, cands[0].width))
         assert result.outcome == GraspOutcome.SUCCESS, result
         assert result.object_id == oid
+
+
+def test_a_grasp_above_a_ledge_costs_the_ledge_factor() -> None:
+    # A 4 cm roof on a 7 cm wide box: the fingers closing on the roof have the box's
+    # wider body just below their tips (a ledge); grasps of the body do not.
+    grid = np.maximum(
+        box_grid((0.15, 0.15, 0.07, 0.07, 0.06)), box_grid((0.15, 0.15, 0.03, 0.07, 0.10))
+    )
+    full = AntipodalPlanner(tilts=(0.0,), ledge_factor=1.0).predict(grid, FRAME).quality
+    half = AntipodalPlanner(tilts=(0.0,), ledge_factor=0.5).predict(grid, FRAME).quality
+    changed = np.abs(full - half) > 1e-6
+    assert changed.any(), "some grasps close above the ledge"
+    assert (half > 0).sum() > changed.sum(), "and some do not"
+    np.testing.assert_allclose(half[changed], 0.5 * full[changed], rtol=1e-5)
+    top_z = CENTRES[np.nonzero(changed)[2]]
+    assert top_z.min() > 0.06 - 0.046, "ledge grasps reach no lower than the body's top"

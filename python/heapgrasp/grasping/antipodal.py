@@ -40,9 +40,10 @@ next to occupied voxels) and orientation:
    ``target_depth``), a small patch, a contact only one voxel high, the object off the
    TCP, the closing line far from the centroid of the grasped blob (seed 001 prefers
    grasps near the line of gravity), a tilted approach, and a *ledge*: the object
-   widening just below the fingertips. Carving from views above the scene leaves a roof
-   on every object, narrower than the object and as high as half its width; contacts
-   above a ledge may be on that roof, with the object below the fingertips.
+   widening just below the fingertips (``ledge_factor``). Carving from views above the
+   scene leaves a roof on every object, narrower than the object and as high as half its
+   width or more (:mod:`heapgrasp.roofs` trims most of it); contacts above a ledge may be
+   on what is left of it, with the object below the fingertips.
 
 Blobs of occupied voxels that do not reach down to the table (``support_height``) are
 carving artefacts (e.g. voxels near the top of the cube seen from a few views only) and
@@ -433,6 +434,9 @@ class AntipodalPlanner:
         Minimum contact patch per finger (lattice cells).
     min_contact_height
         Minimum height (m, along the approach) of each contact at its extreme.
+    ledge_factor
+        Quality factor in [0, 1] of a grasp whose object widens just below the
+        fingertips (see the module docstring).
     support_height
         Blobs whose lowest voxel is higher than this above the table (or the grid's
         bottom) are ignored as carving artefacts; None keeps everything.
@@ -469,6 +473,7 @@ class AntipodalPlanner:
         target_depth: float = 0.022,
         min_patch: int = 2,
         min_contact_height: float = 0.0075,
+        ledge_factor: float = 0.4,
         support_height: float | None = 0.015,
         epsilon: float = 0.4,
         sigma: float = 0.5,
@@ -503,6 +508,10 @@ class AntipodalPlanner:
                 f"target_depth must be >= min_depth, got {target_depth!r} < {min_depth!r}"
             )
         self.min_contact_height = _non_negative("min_contact_height", min_contact_height)
+        lf = _finite("ledge_factor", ledge_factor)
+        if not 0.0 <= lf <= 1.0:
+            raise ValueError(f"ledge_factor must be in [0, 1], got {ledge_factor!r}")
+        self.ledge_factor = lf
         self.support_height = (
             None if support_height is None else _non_negative("support_height", support_height)
         )
@@ -925,7 +934,7 @@ class AntipodalPlanner:
         q *= _ramp(depth, self.min_depth, self.target_depth, 0.7, 1.0)
         q *= _ramp(np.minimum(n_patch[0], n_patch[1]), self.min_patch, self.min_patch + 2, 0.9, 1)
         q *= np.where(np.minimum(levels_side[0], levels_side[1]) >= _FLAT_LEVELS, 1.0, 0.85)
-        q *= np.where(ledge, 0.6, 1.0)
+        q *= np.where(ledge, self.ledge_factor, 1.0)
         q *= 1.0 - 0.1 * min(tilt / (math.pi / 4), 1.0)
         # Closing line near the centroid of the grasped blob (seed 001: line of gravity).
         mid = np.stack([ic, (y_hi + y_lo) // 2, kc], axis=1).astype(np.float64)
