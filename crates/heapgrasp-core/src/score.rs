@@ -379,6 +379,22 @@ mod tests {
         (grid, scene, cam)
     }
 
+    /// A copy of `grid` with the rendered silhouettes of `poses` integrated.
+    fn integrated(
+        grid: &OccupancyGrid,
+        scene: &MeshScene,
+        cam: &PinholeCamera,
+        poses: &[Pose],
+    ) -> OccupancyGrid {
+        let mut g = grid.clone();
+        let masks: Vec<u8> = poses
+            .iter()
+            .flat_map(|p| scene.render_mask(cam, p))
+            .collect();
+        g.integrate_many(cam, poses, &masks).unwrap();
+        g
+    }
+
     /// The definition: render, integrate into a copy, count.
     fn reference(
         grid: &OccupancyGrid,
@@ -387,12 +403,7 @@ mod tests {
         poses: &[Pose],
         lam: f32,
     ) -> f32 {
-        let mut g = grid.clone();
-        let masks: Vec<u8> = poses
-            .iter()
-            .flat_map(|p| scene.render_mask(cam, p))
-            .collect();
-        g.integrate_many(cam, poses, &masks).unwrap();
+        let g = integrated(grid, scene, cam, poses);
         1.0 - g.count_high_confidence(lam) as f32 / grid.count_high_confidence(lam) as f32
     }
 
@@ -465,13 +476,7 @@ mod tests {
                 .filter(|&((&s, &v), &r)| r && table.contains(s, v))
                 .count() as f32
         };
-        let mut g = grid.clone();
-        let masks: Vec<u8> = poses
-            .iter()
-            .flat_map(|p| scene.render_mask(cam, p))
-            .collect();
-        g.integrate_many(cam, poses, &masks).unwrap();
-        1.0 - count(&g) / count(grid)
+        1.0 - count(&integrated(grid, scene, cam, poses)) / count(grid)
     }
 
     #[test]
