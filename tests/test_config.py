@@ -32,6 +32,7 @@ def test_defaults_are_table_one() -> None:
         ({"epsilon": float("nan")}, "epsilon"),
         ({"oracle_frames": 0}, "oracle_frames: must be an integer >= 1; got 0"),
         ({"roof_radius": float("inf")}, "roof_radius: must be in"),
+        ({"silhouette_views": -1}, "silhouette_views: must be an integer >= 0; got -1"),
         ({"target_radius": -0.05}, r"target_radius: must be in \[0.0, 1.0\]; got -0.05"),
         ({"circle_closed": 1}, "circle_closed must be of type bool"),
         ({"lamda": 0.9}, "unknown parameter 'lamda'"),

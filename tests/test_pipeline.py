@@ -79,6 +79,7 @@ def test_a_phase_starts_beside_the_scene_looking_at_it(tmp_path: Path) -> None:
         # the silhouette hull's roofs are trimmed for the planner as configured
         assert isinstance(pipeline.perception, SilhouettePerception)
         assert pipeline.perception.roof_radius == RunConfig().roof_radius > 0
+        assert pipeline.perception.silhouette_views == RunConfig().silhouette_views > 0
         raw = build_pipeline(RunConfig(method="no-vp", roof_radius=0.0), world).perception
         assert isinstance(raw, SilhouettePerception) and raw.roof_radius == 0.0
 

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
-from heapgrasp import OccupancyGrid
+import trimesh
+from heapgrasp import MeshScene, OccupancyGrid, PinholeCamera
 from heapgrasp.grasping.volumes import GridFrame
 from heapgrasp.perception import SilhouettePerception
-from heapgrasp.roofs import column_heights, trim_roofs
+from heapgrasp.roofs import SilhouetteView, column_heights, keep_silhouettes, trim_roofs
+from heapgrasp.sim.camera import CameraSpec
+from heapgrasp.sim.motion import look_at
+from heapgrasp.sim.world import Frame
 
 V = 0.0075  # voxel size of Table I's grid (0.30 m / 40)
 
@@ -107,3 +113,141 @@ def test_perception_trims_the_grasp_input_only_when_asked() -> None:
     np.testing.assert_array_equal(trimmed.grasp_input(), box)
     # the grid itself (what the view scorer counts) keeps the roof
     assert trimmed.grid.count_high_confidence(0.9) == int(hull.sum())
+
+
+# --------------------------------------------------------------- keep_silhouettes
+R_GRID = 40
+FRAME = GridFrame((-0.15, -0.15, 0.0), 0.30, R_GRID)
+
+
+def _carve(
+    boxes: list[tuple[tuple[float, float, float], tuple[float, float, float]]],
+) -> tuple[np.ndarray, list[SilhouetteView]]:
+    """Carves axis-aligned boxes ``(centre, extents)`` standing in the grid from 8 views
+    around them at θ_max = 36° (Table I); returns ``Ŝ≥0.9`` and the views."""
+    scene = MeshScene()
+    for centre, extents in boxes:
+        mesh = trimesh.creation.box(extents=extents)
+        pose = np.eye(4)
+        pose[:3, 3] = centre
+        scene.add_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), pose)
+    camera = PinholeCamera(320, 240, 270.0, 270.0, 159.5, 119.5)
+    grid = OccupancyGrid(FRAME.origin, FRAME.size, FRAME.resolution)
+    views = []
+    for k in range(8):
+        phi, theta = 2 * math.pi * k / 8, math.radians(36.0)
+        eye = 0.33 * np.array(
+            [math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)]
+        )
+        pose = look_at(eye, (0.0, 0.0, 0.0))
+        mask = scene.render_mask(camera, pose)
+        grid.integrate(mask, camera, pose)
+        views.append(SilhouetteView(camera, pose, mask))
+    return grid.high_confidence(0.9), views
+
+
+def _top(grid: np.ndarray, lo: tuple[int, int], hi: tuple[int, int]) -> int:
+    """Highest column height (layers) over the cells ``lo .. hi`` (exclusive)."""
+    return int(column_heights(grid[lo[0] : hi[0], lo[1] : hi[1]] > 0).max())
+
+
+def test_a_roof_stays_trimmed_since_the_object_below_explains_it() -> None:
+    # A 6 x 6 x 4.5 cm box (6 layers, columns 16-23): 8 views at 36° leave a roof on it.
+    full, views = _carve([((0.0, 0.0, 0.0225), (0.06, 0.06, 0.045))])
+    near = ((12, 12), (28, 28))
+    assert _top(full, *near) >= 9
+    trimmed = trim_roofs(full, V, 0.0225)
+    assert _top(trimmed, *near) == 6
+    assert (column_heights(trimmed[16:24, 16:24] > 0) < 6).any()  # and its edges cut
+    kept = keep_silhouettes(full, trimmed, FRAME.origin, V, views)
+    assert set(np.unique(kept)) <= set(np.unique(full))
+    assert ((kept > 0) >= (trimmed > 0)).all() and ((kept > 0) <= (full > 0)).all()
+    # The edges are back, the roof stays off.
+    np.testing.assert_array_equal(column_heights(kept[16:24, 16:24] > 0), 6)
+    assert _top(kept, *near) == 6
+
+
+def test_a_real_part_that_trimming_cut_is_put_back() -> None:
+    # A 1.5 cm post, 12 cm tall, against the side of a 6 x 6 x 4.5 cm box: in the merged
+    # hull the post is narrower than the disc and higher than what is around it.
+    full, views = _carve(
+        [((0.0, 0.0, 0.0225), (0.06, 0.06, 0.045)), ((0.0375, 0.0, 0.06), (0.015, 0.015, 0.12))]
+    )
+    post = ((23, 18), (27, 22))  # the post's columns
+    assert _top(full, *post) >= 16
+    trimmed = trim_roofs(full, V, 0.0225)
+    assert _top(trimmed, *post) <= 8  # cut down to the box
+    kept = keep_silhouettes(full, trimmed, FRAME.origin, V, views)
+    assert _top(kept, *post) >= 15  # the post is back, to within a voxel of 12 cm
+    # ... and the box's roof stays off: a lip of a voxel or two at some of its eaves.
+    box = column_heights(kept[16:22, 16:24] > 0)
+    assert box.max() <= 8 and box.mean() <= 6.5
+
+
+def test_keep_silhouettes_without_views_or_cuts_returns_the_trimmed_grid() -> None:
+    full, views = _carve([((0.0, 0.0, 0.0225), (0.06, 0.06, 0.045))])
+    trimmed = trim_roofs(full, V, 0.0225)
+    np.testing.assert_array_equal(keep_silhouettes(full, trimmed, FRAME.origin, V, []), trimmed)
+    np.testing.assert_array_equal(keep_silhouettes(full, full, FRAME.origin, V, views), full)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"full": np.zeros((4, 4, 4))}, "full and trimmed"),
+        ({"origin": (0.0, 0.0)}, "origin"),
+        ({"voxel_size": -1.0}, "voxel_size"),
+    ],
+)
+def test_keep_silhouettes_bad_input_names_the_value(kwargs: dict[str, object], match: str) -> None:
+    grid = np.zeros((R_GRID,) * 3, dtype=np.float32)
+    args: dict[str, object] = {
+        "full": grid,
+        "trimmed": grid,
+        "origin": FRAME.origin,
+        "voxel_size": V,
+        "views": [],
+    }
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=match):
+        keep_silhouettes(**args)  # type: ignore[arg-type]
+
+
+def test_a_view_with_a_mask_of_the_wrong_size_is_refused() -> None:
+    camera = PinholeCamera(32, 24, 27.0, 27.0, 15.5, 11.5)
+    with pytest.raises(ValueError, match="mask must have shape"):
+        SilhouetteView(camera, np.eye(4), np.zeros((32, 24), dtype=bool))
+    with pytest.raises(ValueError, match="cam2world"):
+        SilhouetteView(camera, np.eye(3), np.zeros((24, 32), dtype=bool))
+
+
+def test_perception_keeps_what_the_silhouettes_show() -> None:
+    with pytest.raises(ValueError, match="silhouette_views"):
+        SilhouettePerception(FRAME, roof_radius=0.0225, silhouette_views=-2)
+    boxes = [((0.0, 0.0, 0.0225), (0.06, 0.06, 0.045)), ((0.0375, 0.0, 0.06), (0.015, 0.015, 0.12))]
+    full, views = _carve(boxes)
+    spec = CameraSpec()
+    frames = [
+        Frame(cam2world=v.cam2world, camera=spec, mask=v.mask, labels=v.mask.astype(np.int32))
+        for v in views
+    ]
+    checked = SilhouettePerception(FRAME, roof_radius=0.0225)
+    unchecked = SilhouettePerception(FRAME, roof_radius=0.0225, silhouette_views=0)
+    for perception in (checked, unchecked):
+        perception.update(frames)
+        np.testing.assert_array_equal(perception.grid.high_confidence(0.9), full)
+    trimmed = trim_roofs(full, V, 0.0225)
+    np.testing.assert_array_equal(unchecked.grasp_input(), trimmed)
+    assert unchecked.views == []  # nothing stored when nothing is checked
+    np.testing.assert_array_equal(
+        checked.grasp_input(), keep_silhouettes(full, trimmed, FRAME.origin, V, views)
+    )
+    post = ((23, 18), (27, 22))
+    assert _top(checked.grasp_input(), *post) >= 15
+    # a subset of the frames still sees the post; a new phase forgets them all
+    few = SilhouettePerception(FRAME, roof_radius=0.0225, silhouette_views=3)
+    few.update(frames)
+    assert len(few.views) == 8
+    assert _top(few.grasp_input(), *post) > _top(trimmed, *post)
+    few.reset()
+    assert few.views == [] and few.frames_seen == 0

@@ -103,6 +103,11 @@ class RunConfig:
     hemisphere6); 0 gives the planner ``Ŝ≥λ`` as it is, as in the paper. Views within
     θ_max of the vertical leave a roof on every object, and grasps planned on it close
     above the object (``docs/benchmarks.md``)."""
+    silhouette_views: int = 24
+    """How many of the phase's frames (evenly spaced) check the trimmed hull against their
+    silhouettes: what trimming cut that some silhouette shows to be real (a bowl's rim,
+    a bottle's neck, an object's edge) is put back (:func:`heapgrasp.roofs.
+    keep_silhouettes`). 0 trims without the check. Only with ``roof_radius`` > 0."""
     # -- grasp selection (eq. 15-17)
     epsilon: float | None = None
     """Grasp score threshold ε; None = the grasp planner's own (Table I's 0.8 for the VGN
@@ -238,6 +243,7 @@ class RunConfig:
             positive(name)
         at_least("objects", 1)
         at_least("scenes", 1)
+        at_least("silhouette_views", 0)
         at_least("seed", 0)
         at_least("resolution", 8)
         if self.resolution > 512:

@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from heapgrasp import OccupancyGrid, PinholeCamera, TSDFVolume
 from heapgrasp.grasping.volumes import GridFrame
-from heapgrasp.roofs import trim_roofs
+from heapgrasp.roofs import SilhouetteView, keep_silhouettes, trim_roofs
 from heapgrasp.sim.world import Frame
 
 __all__ = [
@@ -85,26 +85,39 @@ class SilhouettePerception:
     """Shape from Silhouette over every captured frame (eq. 9-10).
 
     ``roof_radius`` > 0 trims the roofs of the grasp planner's input
-    (:func:`heapgrasp.roofs.trim_roofs`, disc radius in metres); 0 serves ``Ŝ≥λ`` as it
-    is."""
+    (:func:`heapgrasp.roofs.trim_roofs`, disc radius in metres) and puts back what the
+    silhouettes of ``silhouette_views`` of the frames (evenly spaced; 0: none) show to be
+    real (:func:`heapgrasp.roofs.keep_silhouettes`); ``roof_radius`` = 0 serves ``Ŝ≥λ``
+    as it is."""
 
     frame: GridFrame
     segmenter: Segmenter = field(default_factory=IdealSegmenter)
     lam: float = 0.9
     roof_radius: float = 0.0
+    silhouette_views: int = 24
 
     def __post_init__(self) -> None:
+        if (
+            isinstance(self.silhouette_views, bool)
+            or not isinstance(self.silhouette_views, int)
+            or self.silhouette_views < 0
+        ):
+            raise ValueError(
+                f"silhouette_views must be an integer >= 0, got {self.silhouette_views!r}"
+            )
         if not 0.0 <= self.lam <= 1.0:
             raise ValueError(f"lam must be in [0, 1], got {self.lam}")
         if not (np.isfinite(self.roof_radius) and self.roof_radius >= 0):
             raise ValueError(f"roof_radius must be >= 0, got {self.roof_radius}")
         self.grid = OccupancyGrid(self.frame.origin, self.frame.size, self.frame.resolution)
         self.frames_seen = 0
+        self.views: list[SilhouetteView] = []
 
     def reset(self) -> None:
         """Forgets every frame (a new phase)."""
         self.grid.reset()
         self.frames_seen = 0
+        self.views = []
 
     def update(self, frames: Sequence[Frame]) -> None:
         """Segments and carves ``frames`` (all with the same camera)."""
@@ -115,6 +128,10 @@ class SilhouettePerception:
         poses = np.stack([f.cam2world for f in frames])
         self.grid.integrate_many(masks, camera, np.ascontiguousarray(poses))
         self.frames_seen += len(frames)
+        if self.roof_radius > 0 and self.silhouette_views > 0:
+            self.views.extend(
+                SilhouetteView(camera, p, m) for p, m in zip(poses, masks, strict=True)
+            )
 
     def occupancy(self) -> F32:
         """``Ŝ_{0-1}`` (eq. 10)."""
@@ -124,9 +141,20 @@ class SilhouettePerception:
         """The high-confidence grid ``Ŝ≥λ``, roofs trimmed when ``roof_radius`` > 0: the
         grasp planner's input."""
         high = self.grid.high_confidence(self.lam)
-        if self.roof_radius > 0:
-            return trim_roofs(high, self.grid.voxel_size, self.roof_radius)
-        return high
+        if self.roof_radius <= 0:
+            return high
+        trimmed = trim_roofs(high, self.grid.voxel_size, self.roof_radius)
+        if self.silhouette_views == 0 or not self.views:
+            return trimmed
+        n = len(self.views)
+        pick = np.unique(np.linspace(0, n - 1, min(n, self.silhouette_views)).round().astype(int))
+        return keep_silhouettes(
+            high,
+            trimmed,
+            self.frame.origin,
+            self.grid.voxel_size,
+            [self.views[i] for i in pick],
+        )
 
 
 def tsdf_occupancy(values: F32, weights: F32) -> F32:

@@ -117,7 +117,11 @@ class Pipeline:
                 CameraSpec.continuous() if cfg.camera == "continuous" else CameraSpec.still()
             )
             self.perception = SilhouettePerception(
-                self.frame, self.segmenter, cfg.lam, roof_radius=cfg.roof_radius
+                self.frame,
+                self.segmenter,
+                cfg.lam,
+                roof_radius=cfg.roof_radius,
+                silhouette_views=cfg.silhouette_views,
             )
         self.adaptive = cfg.method == "heapgrasp" and cfg.view_planner in ("oracle", "network")
         self.joint_path_errors = 0

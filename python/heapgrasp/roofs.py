@@ -16,21 +16,36 @@ is lowered toward its eaves, which lie at the real top; a flat top at least as w
 the disc stays; an object narrower than the disc keeps its height, because the empty
 columns beside it do not count (a plain grey opening would erase it). What it can cut
 is real and higher than its surroundings and narrower than the disc: a bottle's neck,
-or a tall object standing against a lower one in a merged hull. A planner then sees free
-space there, so a grasp near it may touch it on the way in.
+a bowl's rim, the raised edge of a tilted object, a tall object standing against a lower
+one in a merged hull, an object's edge beside the low skirt that carving leaves around
+it. A planner would see free space there, and a grasp near it would touch it on the way
+in.
+
+:func:`keep_silhouettes` puts such parts back. The silhouettes cannot say which hull
+voxels are real, but they do say what must be: every pixel of a mask is a ray that hits
+an object. A roof is explained away, because the rays through it go on to hit the
+object under it; a real part that was cut leaves pixels of some silhouette that nothing
+left in the grid covers. Cut voxels are restored level by level from the bottom, those
+whose projection holds such a pixel, so that a real part low down, once back, explains
+the pixels a roof above it would otherwise claim.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 from scipy import ndimage
 
-__all__ = ["column_heights", "trim_roofs"]
+from heapgrasp import PinholeCamera
+
+__all__ = ["SilhouetteView", "column_heights", "keep_silhouettes", "trim_roofs"]
 
 F32 = npt.NDArray[np.float32]
+F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
 
 
@@ -89,3 +104,180 @@ def trim_roofs(grid: npt.ArrayLike, voxel_size: float, radius: float) -> F32:
     cap = np.minimum(heights, opened)
     keep = np.arange(g.shape[2])[None, None, :] < cap[:, :, None]
     return np.where(keep, g, np.float32(0.0)).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class SilhouetteView:
+    """One captured silhouette: the camera, its pose and the binary mask."""
+
+    camera: PinholeCamera
+    cam2world: F64
+    mask: npt.NDArray[np.bool_]
+
+    def __post_init__(self) -> None:
+        pose = np.asarray(self.cam2world, dtype=np.float64)
+        if pose.shape != (4, 4) or not np.isfinite(pose).all():
+            raise ValueError(f"cam2world must be a finite (4, 4) matrix, got shape {pose.shape}")
+        mask = np.asarray(self.mask, dtype=bool)
+        if mask.shape != (self.camera.height, self.camera.width):
+            raise ValueError(
+                f"mask must have shape {(self.camera.height, self.camera.width)} "
+                f"(camera height, width), got {mask.shape}"
+            )
+        object.__setattr__(self, "cam2world", pose)
+        object.__setattr__(self, "mask", mask)
+
+
+def _footprints(
+    centres: F64, view: SilhouetteView, voxel_size: float
+) -> tuple[I64, I64, I64, I64, npt.NDArray[np.bool_]]:
+    """Pixel boxes ``[u0, u1] x [v0, v1]`` (inclusive, clipped to the image) holding the
+    projection of each voxel's circumscribed sphere, and whether any pixel is in it."""
+    cam = view.camera
+    world2cam = np.linalg.inv(view.cam2world)
+    p = centres @ world2cam[:3, :3].T + world2cam[:3, 3]
+    z = p[:, 2]
+    front = z > 1e-3
+    zs = np.where(front, z, 1.0)
+    u, v = cam.fx * p[:, 0] / zs + cam.cx, cam.fy * p[:, 1] / zs + cam.cy
+    half = 0.5 * math.sqrt(3.0) * voxel_size / zs
+    ru, rv = cam.fx * half, cam.fy * half
+    u0 = np.clip(np.ceil(u - ru - 0.5), 0, cam.width).astype(np.int64)
+    u1 = np.clip(np.floor(u + ru + 0.5), -1, cam.width - 1).astype(np.int64)
+    v0 = np.clip(np.ceil(v - rv - 0.5), 0, cam.height).astype(np.int64)
+    v1 = np.clip(np.floor(v + rv + 0.5), -1, cam.height - 1).astype(np.int64)
+    return u0, u1, v0, v1, front & (u1 >= u0) & (v1 >= v0)
+
+
+def keep_silhouettes(
+    full: npt.ArrayLike,
+    trimmed: npt.ArrayLike,
+    origin: npt.ArrayLike,
+    voxel_size: float,
+    views: Sequence[SilhouetteView],
+) -> F32:
+    """Puts back what :func:`trim_roofs` cut that a silhouette shows to be real.
+
+    A roof is explained away: every ray through it goes on to hit the object under it.
+    A real part that was cut (a bowl's rim standing up, a bottle's neck) leaves pixels
+    of some silhouette that no remaining voxel covers. For every view, the pixels of
+    the mask that the projections of the kept voxels do not cover (each voxel drawn as
+    the box around its circumscribed sphere; slivers one or two pixels wide, which
+    discretisation leaves at the silhouette's rim, are ignored) are *unexplained*. Level
+    by level from the bottom, the cut voxels whose projection holds an unexplained pixel
+    are needed, and the pixels they cover explained. Each column is raised back to its
+    highest needed voxel.
+
+    Parameters
+    ----------
+    full
+        ``(R, R, R)`` grid before trimming (a voxel is occupied when > 0).
+    trimmed
+        The same grid after :func:`trim_roofs` (a subset of ``full``).
+    origin
+        World position (m) of the grid's minimum corner.
+    voxel_size
+        Edge of a voxel (m).
+    views
+        The silhouettes the grid was carved from (any subset).
+
+    Returns
+    -------
+    numpy.ndarray
+        float32 copy of ``trimmed`` with the restored voxels of ``full``.
+    """
+    f = np.asarray(full, dtype=np.float32)
+    t = np.asarray(trimmed, dtype=np.float32)
+    if f.ndim != 3 or len(set(f.shape)) != 1 or t.shape != f.shape:
+        raise ValueError(
+            f"full and trimmed must be cubic (R, R, R) volumes of one shape, got {f.shape} "
+            f"and {t.shape}"
+        )
+    o = np.asarray(origin, dtype=np.float64)
+    if o.shape != (3,) or not np.isfinite(o).all():
+        raise ValueError(f"origin must be 3 finite numbers, got {origin!r}")
+    if not (math.isfinite(voxel_size) and voxel_size > 0):
+        raise ValueError(f"voxel_size must be > 0, got {voxel_size!r}")
+    kept = t > 0
+    cut = (f > 0) & ~kept
+    out = t.copy()
+    if not cut.any() or not views:
+        return out
+    kept_c = o + (np.argwhere(kept) + 0.5) * voxel_size
+    cut_idx = np.argwhere(cut)
+    cut_c = o + (cut_idx + 0.5) * voxel_size
+    sliver = np.ones((3, 3), dtype=bool)
+    unexplained: list[npt.NDArray[np.bool_]] = []
+    cut_boxes = []
+    for view in views:
+        h, w = view.mask.shape
+        covered = _paint(np.zeros((h, w), dtype=bool), _footprints(kept_c, view, voxel_size))
+        unexplained.append(ndimage.binary_opening(view.mask & ~covered, structure=sliver))
+        cut_boxes.append(_footprints(cut_c, view, voxel_size))
+    # Level by level from the bottom, so that a real part low down, once back, explains
+    # the pixels that a roof above it would otherwise claim.
+    needed = np.zeros(len(cut_idx), dtype=bool)
+    for level in np.unique(cut_idx[:, 2]):
+        at = np.flatnonzero(cut_idx[:, 2] == level)
+        now = np.zeros(len(at), dtype=bool)
+        for un, boxes in zip(unexplained, cut_boxes, strict=True):
+            if un.any():
+                now |= _any_in_boxes(un, boxes, at)
+        if not now.any():
+            continue
+        needed[at[now]] = True
+        back = at[now]
+        for un, (u0, u1, v0, v1, ok) in zip(unexplained, cut_boxes, strict=True):
+            sel = back[ok[back]]
+            _paint(un, (u0[sel], u1[sel], v0[sel], v1[sel], None), value=False)
+    if not needed.any():
+        return out
+    # Raise each column back to its highest needed voxel.
+    r = f.shape[0]
+    top = np.full((r, r), -1, dtype=np.int64)
+    ci = cut_idx[needed]
+    np.maximum.at(top, (ci[:, 0], ci[:, 1]), ci[:, 2])
+    levels = np.arange(r)[None, None, :]
+    back_mask = cut & (levels <= top[:, :, None])
+    out[back_mask] = f[back_mask]
+    return out
+
+
+def _any_in_boxes(
+    image: npt.NDArray[np.bool_],
+    boxes: tuple[I64, I64, I64, I64, npt.NDArray[np.bool_]],
+    idx: I64,
+) -> npt.NDArray[np.bool_]:
+    """Whether the pixel box of each voxel ``idx`` (of :func:`_footprints`) holds a set
+    pixel of ``image``."""
+    u0, u1, v0, v1, ok = (b[idx] for b in boxes)
+    u1, v1 = np.maximum(u1, u0 - 1), np.maximum(v1, v0 - 1)  # empty boxes sum to 0
+    s = np.zeros((image.shape[0] + 1, image.shape[1] + 1), dtype=np.int32)
+    np.cumsum(np.cumsum(image, axis=0, dtype=np.int32), axis=1, out=s[1:, 1:])
+    n = s[v1 + 1, u1 + 1] - s[v0, u1 + 1] - s[v1 + 1, u0] + s[v0, u0]
+    return np.asarray(ok & (n > 0))
+
+
+def _paint(
+    image: npt.NDArray[np.bool_],
+    boxes: tuple[I64, I64, I64, I64, npt.NDArray[np.bool_] | None],
+    value: bool = True,
+) -> npt.NDArray[np.bool_]:
+    """Sets the pixel boxes ``[u0, u1] x [v0, v1]`` (where ``ok``) of ``image`` to
+    ``value`` in place and returns it."""
+    u0, u1, v0, v1, ok = boxes
+    if ok is not None:
+        u0, u1, v0, v1 = u0[ok], u1[ok], v0[ok], v1[ok]
+    good = (u1 >= u0) & (v1 >= v0)
+    u0, u1, v0, v1 = u0[good], u1[good], v0[good], v1[good]
+    if len(u0) == 0:
+        return image
+    h, w = image.shape
+    diff = np.zeros((h + 1, w + 1), dtype=np.int32)
+    np.add.at(diff, (v0, u0), 1)
+    np.add.at(diff, (v0, u1 + 1), -1)
+    np.add.at(diff, (v1 + 1, u0), -1)
+    np.add.at(diff, (v1 + 1, u1 + 1), 1)
+    hit = np.cumsum(np.cumsum(diff, axis=0), axis=1)[:h, :w] > 0
+    image[hit] = value
+    return image

@@ -294,7 +294,10 @@ def _evaluate(
         hand = pipeline.robot
     elif kind == "dense":
         perception = SilhouettePerception(
-            frame, lam=run_config.lam, roof_radius=run_config.roof_radius
+            frame,
+            lam=run_config.lam,
+            roof_radius=run_config.roof_radius,
+            silhouette_views=run_config.silhouette_views,
         )
         camera = (
             CameraSpec.continuous() if run_config.camera == "continuous" else CameraSpec.still()
