@@ -138,8 +138,11 @@ class SilhouettePerception:
         return self.grid.occupancy()
 
     def grasp_input(self) -> F32:
-        """The high-confidence grid ``Ŝ≥λ``, roofs trimmed when ``roof_radius`` > 0: the
-        grasp planner's input."""
+        """The grasp planner's input: the high-confidence grid ``Ŝ≥λ``; when
+        ``roof_radius`` > 0 with its roofs trimmed (:func:`~heapgrasp.roofs.trim_roofs`)
+        and, when ``silhouette_views`` > 0, what the trimming cut that up to that many of
+        the phase's silhouettes (evenly spaced) show to be real put back
+        (:func:`~heapgrasp.roofs.keep_silhouettes`)."""
         high = self.grid.high_confidence(self.lam)
         if self.roof_radius <= 0:
             return high
