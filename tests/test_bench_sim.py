@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -31,3 +32,10 @@ def test_tables_from_a_small_run(tmp_path: Path) -> None:
     assert text == markdown_tables(summaries, base)
     assert "| no-vp (antipodal grasps) |" in text and "92.7 (458/494)" in text
     assert (tmp_path / "no-vp" / "results.json").exists()
+    assert "| Success (%) | 95 % CI |" in text
+    saved = json.loads((tmp_path / "summary.json").read_text())["no-vp"]
+    if saved["grasps_attempted"]:
+        low, high = saved["grasp_success_ci95"]
+        assert low <= 100 * saved["grasp_success_rate"] <= high
+    else:
+        assert saved["grasp_success_ci95"] is None

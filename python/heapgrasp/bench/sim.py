@@ -6,7 +6,9 @@ same seeded scenes (scene ``i`` has seed ``seed + i``). Each method's run is a n
 :func:`heapgrasp.run.run` in ``OUT/<method>/`` (resumable), on a process pool.
 
 Writes ``OUT/table.md`` (a Table II-style overall table beside the paper's numbers and
-a Table III-style table per scene group), ``OUT/summary.json``, ``OUT/fig5_paths.png``
+a Table III-style table per scene group; every success rate with its 95 % interval, and
+each method's difference from no-vp with a paired scene-bootstrap interval,
+:mod:`heapgrasp.bench.stats`), ``OUT/summary.json``, ``OUT/fig5_paths.png``
 (camera paths in the x–y plane, as Fig. 5) and ``OUT/fig4_grids.png`` (the measured
 high-confidence grid of one phase with its grasp candidates, as Fig. 4).
 """
@@ -22,9 +24,17 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from heapgrasp.bench.stats import format_interval, methods_differences, success_interval
 from heapgrasp.config import METHODS, ConfigError, RunConfig
 
-__all__ = ["PAPER_TABLE_II", "add_parser", "markdown_tables", "run_bench", "scene_groups"]
+__all__ = [
+    "PAPER_TABLE_II",
+    "add_parser",
+    "add_uncertainty",
+    "markdown_tables",
+    "run_bench",
+    "scene_groups",
+]
 
 #: HEAPGrasp Table II (simulation): success (%), (succeeded, attempted), trajectory length
 #: (m) mean ± std, shortest trajectory ratio (%) mean ± std.
@@ -78,7 +88,11 @@ def add_parser(
         help="processes (scenes in parallel)",
     )
     p.add_argument("--out", type=Path, help="output directory (default runs/bench-sim-<time>)")
-    p.add_argument("--resume", action="store_true", help="continue the runs in --out")
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the runs in --out (a finished run only re-renders its tables)",
+    )
     p.add_argument("--no-figures", action="store_true", help="skip Fig. 4/5")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=command)
@@ -132,6 +146,7 @@ def run_bench(
             progress=progress,
         )
         summaries[method]["bench_wall_time_s"] = time.perf_counter() - t0
+    add_uncertainty(summaries)
     (out / "summary.json").write_text(
         json.dumps(
             {m: {k: v for k, v in s.items() if k != "phases"} for m, s in summaries.items()},
@@ -145,6 +160,31 @@ def run_bench(
         figure_paths(summaries, out / "fig5_paths.png")
         figure_grids(base, list(methods), out / "fig4_grids.png", scene=0)
     return summaries
+
+
+def add_uncertainty(summaries: dict[str, dict[str, Any]], reference: str = "no-vp") -> None:
+    """Adds to every method's summary ``grasp_success_ci95`` (Wilson, percent) and, when
+    ``reference`` ran and the summaries hold their ``phases``, ``success_difference``: the
+    paired scene-bootstrap difference from ``reference`` in points
+    (:mod:`heapgrasp.bench.stats`)."""
+    for s in summaries.values():
+        n, k = s.get("grasps_attempted", 0), s.get("grasps_succeeded", 0)
+        s["grasp_success_ci95"] = [100 * x for x in success_interval(k, n)] if n else None
+    if not all("phases" in s for s in summaries.values()):
+        return
+    diffs = methods_differences({m: s["phases"] for m, s in summaries.items()}, reference)
+    for m, d in diffs.items():
+        summaries[m]["success_difference"] = {"reference": reference, **d}
+
+
+def _ci(s: dict[str, Any]) -> str:
+    ci = s.get("grasp_success_ci95")
+    if ci is None:
+        n, k = s.get("grasps_attempted", 0), s.get("grasps_succeeded", 0)
+        if not n:
+            return "–"
+        ci = [100 * x for x in success_interval(k, n)]
+    return format_interval(ci[0], ci[1])
 
 
 def _pm(stat: dict[str, Any], digits: int) -> str:
@@ -169,10 +209,10 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
         "and masks); ours: the simulated depth sensor of `docs/simulation.md` unless "
         "`ideal_depth = true`.",
         "",
-        "| Method | Success (%) | Removed | Trajectory (m) | Shortest ratio (%) | Exec. time (s) "
-        "| Latency / waypoint (s) | Wall / scene (s) | Paper success (%) | Paper trajectory (m) "
-        "| Paper ratio (%) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| Method | Success (%) | 95 % CI | Removed | Trajectory (m) | Shortest ratio (%) "
+        "| Exec. time (s) | Latency / waypoint (s) | Wall / scene (s) | Paper success (%) "
+        "| Paper trajectory (m) | Paper ratio (%) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for method, s in summaries.items():
         paper = PAPER_TABLE_II.get(method)
@@ -184,7 +224,7 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
         )
         removed = f"{s['objects_removed']}/{s['objects_total']}"
         lines.append(
-            f"| {s.get('label', method)} | {_rate(s)} | {removed} "
+            f"| {s.get('label', method)} | {_rate(s)} | {_ci(s)} | {removed} "
             f"| {_pm(s['trajectory_length_m'], 2)} | {_pm(s['shortest_trajectory_ratio'], 0)} "
             f"| {_pm(s['execution_time_s'], 2)} | {_pm(s['planning_latency_per_waypoint_s'], 3)} "
             f"| {_pm(s['wall_time_per_scene_s'], 1)} | {p_cols} |"
@@ -212,6 +252,22 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
             if s["trajectory_length_m"]["mean"] is not None:
                 ratio = s["trajectory_length_m"]["mean"] / ref["trajectory_length_m"]["mean"]
                 lines.append(f"- {method}: {100 * ratio:.0f} %")
+    diffs = {m: s["success_difference"] for m, s in summaries.items() if "success_difference" in s}
+    if diffs:
+        lines += [
+            "",
+            "Success rate minus no-vp's, in points, with a 95 % interval from resampling the "
+            "scenes both ran (paired bootstrap, `heapgrasp.bench.stats`):",
+            "",
+        ]
+        for method, d in diffs.items():
+            if d["difference"] is None:
+                lines.append(f"- {method}: – (no attempt)")
+            else:
+                lines.append(
+                    f"- {method}: {d['difference']:+.1f} {format_interval(d['low'], d['high'])}"
+                    f" over {d['scenes']} scenes"
+                )
     return "\n".join(lines) + "\n"
 
 
