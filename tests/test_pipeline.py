@@ -13,7 +13,14 @@ from heapgrasp.config import ConfigError, RunConfig
 from heapgrasp.grasping.volumes import GraspCandidate
 from heapgrasp.perception import SilhouettePerception
 from heapgrasp.pipeline import build_pipeline
-from heapgrasp.run import RESULTS_FILE, SCENES_FILE, RunExistsError, load_records, run
+from heapgrasp.run import (
+    RESULTS_FILE,
+    SCENES_FILE,
+    RunExistsError,
+    format_summary,
+    load_records,
+    run,
+)
 from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.protocol import StopReason, run_clutter_removal
 from heapgrasp.sim.world import SimWorld
@@ -198,9 +205,14 @@ def test_an_interrupted_run_resumes_without_losing_scenes(tmp_path: Path) -> Non
         "trajectory_length_m",
         "shortest_trajectory_ratio",
         "execution_time_s",
+        "grasp_success_ci95",
         "phases",
     ):
         assert key in summary
+    if summary["grasps_attempted"]:
+        low, high = summary["grasp_success_ci95"]
+        assert low <= 100 * summary["grasp_success_rate"] <= high
+        assert f"[{low:.1f}, {high:.1f}] %" in format_summary(summary)
     assert summary["grasps_attempted"] == sum(
         p["outcome"] != "no_candidate" for r in records for p in r["phases"]
     )

@@ -32,6 +32,7 @@ import numpy as np
 
 from heapgrasp.config import ConfigError, RunConfig, object_library
 from heapgrasp.sim.metrics import Phase, aggregate
+from heapgrasp.stats import success_interval
 
 __all__ = [
     "RESULTS_FILE",
@@ -168,12 +169,15 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
             sum(int(r["objects_total"]) for r in sel),
         )
         per_group[group].pop("per_category", None)
+    n, k = metrics["grasps_attempted"], metrics["grasps_succeeded"]
     return {
         "method": config.method,
         "label": _method_label(config),
         "view_planner": config.view_planner if config.method == "heapgrasp" else None,
         "grasp_planner": config.grasp_planner,
         **metrics,
+        # 95 % Wilson interval of the success rate, in percent (heapgrasp.stats).
+        "grasp_success_ci95": [100 * x for x in success_interval(k, n)] if n else None,
         "per_scene_group": per_group,
         "scenes_completed": len(done),
         "scenes_failed": [{"scene": r["scene"], "error": r["error"]} for r in failed],
@@ -351,6 +355,9 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"{name:<12} {succ:>22} {removed:>9} {_fmt(s['trajectory_length_m']):>15} "
             f"{_fmt(s['shortest_trajectory_ratio'], 0):>19} {_fmt(s['execution_time_s']):>14}"
         )
+    if summary.get("grasp_success_ci95"):
+        lo, hi = summary["grasp_success_ci95"]
+        lines.append(f"success rate, 95 % interval (Wilson): [{lo:.1f}, {hi:.1f}] %")
     lat = summary.get("planning_latency_per_waypoint_s", {})
     wall = summary.get("wall_time_per_scene_s", {})
     lines.append(

@@ -8,7 +8,7 @@ same seeded scenes (scene ``i`` has seed ``seed + i``). Each method's run is a n
 Writes ``OUT/table.md`` (a Table II-style overall table beside the paper's numbers and
 a Table III-style table per scene group; every success rate with its 95 % interval, and
 each method's difference from no-vp with a paired scene-bootstrap interval,
-:mod:`heapgrasp.bench.stats`), ``OUT/summary.json``, ``OUT/fig5_paths.png``
+:mod:`heapgrasp.stats`), ``OUT/summary.json``, ``OUT/fig5_paths.png``
 (camera paths in the x–y plane, as Fig. 5) and ``OUT/fig4_grids.png`` (the measured
 high-confidence grid of one phase with its grasp candidates, as Fig. 4).
 """
@@ -24,8 +24,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from heapgrasp.bench.stats import format_interval, methods_differences, success_interval
 from heapgrasp.config import METHODS, ConfigError, RunConfig
+from heapgrasp.stats import format_interval, methods_differences, success_interval
 
 __all__ = [
     "PAPER_TABLE_II",
@@ -166,7 +166,7 @@ def add_uncertainty(summaries: dict[str, dict[str, Any]], reference: str = "no-v
     """Adds to every method's summary ``grasp_success_ci95`` (Wilson, percent) and, when
     ``reference`` ran and the summaries hold their ``phases``, ``success_difference``: the
     paired scene-bootstrap difference from ``reference`` in points
-    (:mod:`heapgrasp.bench.stats`)."""
+    (:mod:`heapgrasp.stats`)."""
     for s in summaries.values():
         n, k = s.get("grasps_attempted", 0), s.get("grasps_succeeded", 0)
         s["grasp_success_ci95"] = [100 * x for x in success_interval(k, n)] if n else None
@@ -257,7 +257,7 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
         lines += [
             "",
             "Success rate minus no-vp's, in points, with a 95 % interval from resampling the "
-            "scenes both ran (paired bootstrap, `heapgrasp.bench.stats`):",
+            "scenes both ran (paired bootstrap, `heapgrasp.stats`):",
             "",
         ]
         for method, d in diffs.items():

@@ -1,4 +1,4 @@
-"""heapgrasp.bench.stats: Wilson intervals, per-scene counts, paired scene bootstrap."""
+"""heapgrasp.stats: Wilson intervals, per-scene counts, paired scene bootstrap."""
 
 from __future__ import annotations
 
@@ -7,13 +7,13 @@ from typing import Any
 
 import pytest
 from heapgrasp.bench.sim import add_uncertainty, markdown_tables
-from heapgrasp.bench.stats import (
+from heapgrasp.config import RunConfig
+from heapgrasp.stats import (
     format_interval,
     paired_success_difference,
     scene_counts,
     success_interval,
 )
-from heapgrasp.config import RunConfig
 
 
 def _wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
