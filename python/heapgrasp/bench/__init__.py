@@ -10,7 +10,9 @@ its subcommand (and sets ``func``, the function that runs it, as a parser defaul
 * :mod:`heapgrasp.bench.sim` -- ``heapgrasp bench sim``: the closed loop of HEAPGrasp and
   its baselines on seed 000's protocol (Tables II/III, Fig. 4/5);
 * :mod:`heapgrasp.bench.grasp` -- ``heapgrasp bench grasp``: the analytic antipodal grasp
-  planner on circle / dense Shape-from-Silhouette grids, one executed grasp per scene.
+  planner on circle / dense Shape-from-Silhouette grids, one executed grasp per scene;
+* :mod:`heapgrasp.bench.compare` -- ``heapgrasp bench compare``: two finished runs on
+  the same scenes, success rates with intervals and their paired difference.
 
 Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`.
 """
@@ -19,7 +21,7 @@ from __future__ import annotations
 
 import argparse
 
-from heapgrasp.bench import carve, grasp, sim, world
+from heapgrasp.bench import carve, compare, grasp, sim, world
 
 __all__ = ["add_parser"]
 
@@ -52,4 +54,5 @@ def add_parser(
     world.add_parser(benches)
     sim.add_parser(benches)
     grasp.add_parser(benches)
+    compare.add_parser(benches)
     return p

@@ -1,0 +1,87 @@
+"""heapgrasp bench compare: two run directories on the same scenes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from heapgrasp.bench.compare import CompareError, compare_runs
+from heapgrasp.cli import main
+from heapgrasp.stats import success_interval
+
+
+def _write_run(out: Path, scenes: dict[int, list[tuple[str, float]]]) -> Path:
+    """A run directory with one record per seed: (outcome, trajectory) per phase."""
+    out.mkdir(parents=True)
+    lines = []
+    for i, (seed, phases) in enumerate(scenes.items()):
+        record = {
+            "scene": i,
+            "seed": seed,
+            "phases": [
+                {
+                    "outcome": o,
+                    "grasp_position": None if o == "no_candidate" else [0.1, 0.1, 0.05],
+                    "trajectory_length_m": t,
+                }
+                for o, t in phases
+            ],
+        }
+        lines.append(json.dumps(record))
+    lines.append('{"scene": 99, "seed": 7, "error": "boom"}')  # a failed scene is skipped
+    (out / "scenes.jsonl").write_text("\n".join(lines) + "\n")
+    return out
+
+
+def test_compare_matches_scenes_by_seed(tmp_path: Path) -> None:
+    a = _write_run(
+        tmp_path / "a",
+        {
+            5: [("success", 1.0), ("empty", 1.0), ("no_candidate", 0.5)],
+            6: [("success", 1.0)],
+            8: [("success", 3.0)],
+        },
+    )
+    # The same scenes in another order, seed 8 missing, seed 9 extra.
+    b = _write_run(
+        tmp_path / "b",
+        {6: [("success", 2.0)], 5: [("success", 2.0), ("success", 2.0)], 9: [("empty", 2.0)]},
+    )
+    c = compare_runs(a, b)
+    assert c["a"]["grasps_succeeded"] == 3 and c["a"]["grasps_attempted"] == 4
+    assert c["a"]["grasp_success_ci"] == pytest.approx([100 * x for x in success_interval(3, 4)])
+    assert c["a"]["trajectory_length_m"] == pytest.approx(1.5)
+    assert c["b"]["scenes"] == 3 and c["b"]["grasp_success_rate"] == pytest.approx(0.75)
+    d = c["success_difference"]
+    # Common seeds 5 and 6: A 2/3, B 3/3.
+    assert d["scenes"] == 2 and d["difference"] == pytest.approx(100 * (2 / 3 - 1))
+    assert c["trajectory_ratio"] == pytest.approx(1.5 / 2.0)
+
+
+def test_compare_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    a = _write_run(tmp_path / "a", {1: [("success", 1.0)], 2: [("success", 1.0)]})
+    b = _write_run(tmp_path / "b", {1: [("success", 2.0)], 2: [("collision", 2.0)]})
+    out = tmp_path / "c.json"
+    assert main(["bench", "compare", str(a), str(b), "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "A - B: +50.0 points" in text and "trajectory A / B: 50.0 %" in text
+    assert json.loads(out.read_text())["success_difference"]["difference"] == pytest.approx(50.0)
+
+
+def test_compare_refuses_what_it_cannot_compare(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a = _write_run(tmp_path / "a", {1: [("success", 1.0)]})
+    b = _write_run(tmp_path / "b", {2: [("success", 1.0)]})
+    with pytest.raises(CompareError, match="no scene"):
+        compare_runs(a, b)
+    with pytest.raises(CompareError, match="not a directory"):
+        compare_runs(tmp_path / "missing", b)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(CompareError, match="no finished scene"):
+        compare_runs(tmp_path / "empty", b)
+    assert main(["bench", "compare", str(a), str(b)]) == 2
+    assert "no scene (seed) in common" in capsys.readouterr().err
+    assert main(["bench", "compare", str(a), str(a), "--level", "1.5"]) == 2
+    assert "level must be in (0, 1), got 1.5" in capsys.readouterr().err
