@@ -178,13 +178,11 @@ def add_uncertainty(summaries: dict[str, dict[str, Any]], reference: str = "no-v
 
 
 def _ci(s: dict[str, Any]) -> str:
-    ci = s.get("grasp_success_ci95")
-    if ci is None:
-        n, k = s.get("grasps_attempted", 0), s.get("grasps_succeeded", 0)
-        if not n:
-            return "–"
-        ci = [100 * x for x in success_interval(k, n)]
-    return format_interval(ci[0], ci[1])
+    n, k = s.get("grasps_attempted", 0), s.get("grasps_succeeded", 0)
+    if not n:
+        return "–"
+    low, high = success_interval(k, n)
+    return format_interval(100 * low, 100 * high)
 
 
 def _pm(stat: dict[str, Any], digits: int) -> str:
