@@ -7,6 +7,7 @@ parsed :class:`argparse.Namespace` and returning the exit status::
     heapgrasp run [options]                  simulated pick-and-place (HEAPGrasp, baselines)
     heapgrasp bench carve|world|sim|grasp    benchmarks
     heapgrasp sim capture                    frames of a seeded scene
+    heapgrasp critic data|train              the learned grasp critic
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
         The top-level parser.
     """
     from heapgrasp import __version__, bench, run_cli
+    from heapgrasp.grasping import critic_cli
     from heapgrasp.sim import cli as sim_cli
 
     parser = argparse.ArgumentParser(
@@ -45,6 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     run_cli.add_parser(commands)
     bench.add_parser(commands)
     sim_cli.add_parser(commands)
+    critic_cli.add_parser(commands)
     return parser
 
 

@@ -116,6 +116,14 @@ class RunConfig:
     """Gaussian smoothing of the grasp scores (voxels); None = the grasp planner's own
     recommendation (1.0 for the VGN network, as VGN; see the analytic planner)."""
     nms_window: int = 4
+    grasp_critic: str = "none"
+    """Learned critic that drops candidates unlikely to hold an object
+    (:mod:`heapgrasp.grasping.critic`; silhouette methods only): ``none``, ``default``
+    (the weights shipped with the package, ``docs/critic.md``) or the path of a critic
+    file written by ``heapgrasp critic train``."""
+    critic_threshold: float | None = None
+    """Probability below which the critic drops a candidate (its ε); None = the one
+    stored in the critic file."""
     failed_grasp_radius: float = 0.02
     """After a failed grasp, candidates within this distance of it (m) are not tried
     again until a grasp succeeds (the scene has then changed). The simulation is
@@ -198,6 +206,12 @@ class RunConfig:
         choice("object_set", OBJECT_SETS)
         choice("camera", ("continuous", "still"))
         choice("mount", MOUNTS)
+        if not isinstance(self.grasp_critic, str) or not self.grasp_critic:
+            raise ConfigError(
+                f"grasp_critic: must be 'none', 'default' or a file path; got {self.grasp_critic!r}"
+            )
+        if self.grasp_critic != "none" and self.method == "vgn":
+            raise ConfigError("grasp_critic: needs a silhouette method (not vgn)")
 
         def between(name: str, lo: float, hi: float) -> None:
             value = getattr(self, name)
@@ -215,6 +229,8 @@ class RunConfig:
                 raise ConfigError(f"{name}: must be an integer >= {lo}; got {value!r}")
 
         between("lam", 0.0, 1.0)
+        if self.critic_threshold is not None:
+            between("critic_threshold", 0.0, 1.0)
         if self.epsilon is not None:
             between("epsilon", 0.0, 1.0)
         between("noise", 0.0, 0.5)
@@ -301,7 +317,7 @@ class RunConfig:
             ):
                 value = float(value)
             if (
-                key in ("sigma", "epsilon")
+                key in ("sigma", "epsilon", "critic_threshold")
                 and isinstance(value, int)
                 and not isinstance(value, bool)
             ):

@@ -112,12 +112,20 @@ class SilhouettePerception:
         self.grid = OccupancyGrid(self.frame.origin, self.frame.size, self.frame.resolution)
         self.frames_seen = 0
         self.views: list[SilhouetteView] = []
+        self._positions: list[npt.NDArray[np.float64]] = []
 
     def reset(self) -> None:
         """Forgets every frame (a new phase)."""
         self.grid.reset()
         self.frames_seen = 0
         self.views = []
+        self._positions = []
+
+    def camera_positions(self) -> npt.NDArray[np.float64]:
+        """``(frames, 3)`` camera positions of the phase's frames (world, m)."""
+        if not self._positions:
+            return np.zeros((0, 3))
+        return np.concatenate(self._positions)
 
     def update(self, frames: Sequence[Frame]) -> None:
         """Segments and carves ``frames`` (all with the same camera)."""
@@ -128,6 +136,7 @@ class SilhouettePerception:
         poses = np.stack([f.cam2world for f in frames])
         self.grid.integrate_many(masks, camera, np.ascontiguousarray(poses))
         self.frames_seen += len(frames)
+        self._positions.append(poses[:, :3, 3].astype(np.float64))
         if self.roof_radius > 0 and self.silhouette_views > 0:
             self.views.extend(
                 SilhouetteView(camera, p, m) for p, m in zip(poses, masks, strict=True)

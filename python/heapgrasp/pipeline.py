@@ -41,6 +41,7 @@ import numpy.typing as npt
 
 from heapgrasp import HeapgraspError
 from heapgrasp.config import ConfigError, RunConfig
+from heapgrasp.grasping.critic import DEFAULT_CRITIC, GraspCritic
 from heapgrasp.grasping.volumes import (
     GraspCandidate,
     GraspPlanner,
@@ -100,6 +101,8 @@ class Pipeline:
     view_scorer: ViewScorer | None = None
     segmenter: Segmenter = field(default_factory=IdealSegmenter)
     rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
+    critic: GraspCritic | None = None
+    """Drops candidates unlikely to hold an object (``RunConfig.grasp_critic``)."""
 
     def __post_init__(self) -> None:
         cfg = self.config
@@ -176,20 +179,31 @@ class Pipeline:
             grid = self.perception.grasp_input()
         volumes = self.grasp_planner.predict(grid, self.frame)
         sigma = cfg.sigma if cfg.sigma is not None else getattr(self.grasp_planner, "sigma", 1.0)
-        eps = (
-            cfg.epsilon if cfg.epsilon is not None else getattr(self.grasp_planner, "epsilon", 0.8)
-        )
+        if cfg.epsilon is not None:
+            eps = cfg.epsilon
+        elif self.critic is not None:  # the critic's own ε applies to its probabilities
+            eps = self.critic.candidate_epsilon
+        else:
+            eps = getattr(self.grasp_planner, "epsilon", 0.8)
         cands = select_candidates(
             volumes, epsilon=float(eps), sigma=float(sigma), nms_window=cfg.nms_window
         )
-        if not self.failed_grasps or cfg.failed_grasp_radius <= 0.0:
-            return cands
-        failed = np.asarray(self.failed_grasps)
-        return [
-            c
-            for c in cands
-            if np.min(np.linalg.norm(failed - c.position, axis=1)) > cfg.failed_grasp_radius
-        ]
+        if self.failed_grasps and cfg.failed_grasp_radius > 0.0:
+            failed = np.asarray(self.failed_grasps)
+            cands = [
+                c
+                for c in cands
+                if np.min(np.linalg.norm(failed - c.position, axis=1)) > cfg.failed_grasp_radius
+            ]
+        if self.critic is not None and isinstance(self.perception, SilhouettePerception):
+            cands = self.critic.rescore(
+                cands,
+                grid,
+                self.perception.grid.high_confidence(cfg.lam),
+                self.frame,
+                self.perception.camera_positions(),
+            )
+        return cands
 
     def record_outcome(self, grasp: Grasp, outcome: GraspOutcome | str) -> None:
         """Remembers a failed grasp (its candidates are dropped by
@@ -413,6 +427,17 @@ def make_grasp_planner(config: RunConfig) -> GraspPlanner:
     return planner
 
 
+def make_critic(config: RunConfig) -> GraspCritic | None:
+    """The configured grasp critic; None for ``grasp_critic = "none"``."""
+    if config.grasp_critic == "none":
+        return None
+    path = DEFAULT_CRITIC if config.grasp_critic == "default" else Path(config.grasp_critic)
+    critic = GraspCritic.load(path)
+    if config.critic_threshold is not None:
+        critic.threshold = config.critic_threshold
+    return critic
+
+
 def make_view_scorer(config: RunConfig) -> ViewScorer | None:
     """The configured view scorer; None for fixed-view methods."""
     if config.method != "heapgrasp" or config.view_planner in ("circle", "hemisphere6"):
@@ -447,6 +472,7 @@ def build_pipeline(
     grasp_planner: GraspPlanner | None = None,
     view_scorer: ViewScorer | None = None,
     segmenter: Segmenter | None = None,
+    critic: GraspCritic | None = None,
     seed: int = 0,
 ) -> Pipeline:
     """A :class:`Pipeline` for ``config`` in ``world`` (after ``world.reset``); any stage
@@ -459,4 +485,5 @@ def build_pipeline(
         view_scorer=view_scorer if view_scorer is not None else make_view_scorer(config),
         segmenter=segmenter if segmenter is not None else make_segmenter(config, seed),
         rng=np.random.default_rng(seed),
+        critic=critic if critic is not None else make_critic(config),
     )

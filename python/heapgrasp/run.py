@@ -55,9 +55,14 @@ class RunExistsError(ValueError):
 
 
 def _method_label(config: RunConfig) -> str:
+    grasps = f"{config.grasp_planner} grasps"
+    if config.grasp_critic == "default":
+        grasps += ", critic"
+    elif config.grasp_critic != "none":
+        grasps += f", critic {Path(config.grasp_critic).name}"
     if config.method == "heapgrasp":
-        return f"heapgrasp ({config.view_planner} views, {config.grasp_planner} grasps)"
-    return f"{config.method} ({config.grasp_planner} grasps)"
+        return f"heapgrasp ({config.view_planner} views, {grasps})"
+    return f"{config.method} ({grasps})"
 
 
 def run_scene(

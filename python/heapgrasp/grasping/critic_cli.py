@@ -1,0 +1,171 @@
+"""``heapgrasp critic data|train``: the grasp critic's data and weights.
+
+::
+
+    heapgrasp critic data --scenes 240 --workers 2 --out runs/critic-data
+    heapgrasp critic train runs/critic-data --out python/heapgrasp/weights/critic.npz
+
+``data`` runs HEAPGrasp's phases on train-split scenes and tries every candidate in the
+simulator (:mod:`heapgrasp.grasping.critic_data`); an interrupted run continues where it
+stopped. ``train`` cross-validates by scene (:mod:`heapgrasp.grasping.critic_train`),
+fits on all scenes, and writes the critic with its command and the cross-validated
+measurements, plus ``FILE.json`` with the same report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+from pathlib import Path
+
+from heapgrasp.bench.argtypes import float_in, int_at_least
+
+__all__ = ["add_parser"]
+
+
+def _data(args: argparse.Namespace) -> int:
+    from heapgrasp.grasping.critic_data import CriticDataConfig, generate
+
+    config = CriticDataConfig(
+        scenes=args.scenes,
+        seed=args.seed,
+        epsilon=args.epsilon,
+        max_candidates=args.max_candidates,
+        max_phases=args.max_phases,
+        method=args.method,
+    )
+    paths = generate(config, Path(args.out), workers=args.workers)
+    print(f"{len(paths)} scene files in {args.out}")
+    return 0
+
+
+def _train(args: argparse.Namespace) -> int:
+    from heapgrasp.grasping.critic import GraspCritic
+    from heapgrasp.grasping.critic_data import load_dataset
+    from heapgrasp.grasping.critic_train import cross_validate, design_matrix
+    from heapgrasp.grasping.volumes import GridFrame
+
+    data = Path(args.data)
+    paths = sorted(data.glob("scene_*.npz"))
+    if not paths:
+        raise ValueError(
+            f"no scene_*.npz files in {data} (write them with 'heapgrasp critic data')"
+        )
+    scenes = load_dataset(paths)
+    design = design_matrix(scenes, GridFrame((0.0, 0.0, 0.0), args.cube_size, args.resolution))
+    print(f"{len(design)} candidates from {len(paths)} scenes; cross-validating ...", flush=True)
+    report = cross_validate(
+        design,
+        components=args.components,
+        l2=args.l2,
+        thresholds=sorted({*args.report_thresholds, args.threshold}),
+        epsilon=args.epsilon,
+        folds=args.folds,
+    )
+    critic = GraspCritic.fit(
+        design.features,
+        design.labels,
+        components=args.components,
+        l2=args.l2,
+        threshold=args.threshold,
+        candidate_epsilon=args.candidate_epsilon,
+    )
+    command = "heapgrasp " + shlex.join(getattr(args, "argv", sys.argv[1:]))
+    meta = {
+        "data": str(data),
+        "scenes": len(paths),
+        "seeds": [int(s["seed"]) for s in scenes],
+        "components": args.components,
+        "l2": args.l2,
+        "cross_validation": report,
+    }
+    out = Path(args.out)
+    critic.save(out, command=command, metadata=meta)
+    out.with_suffix(".json").write_text(json.dumps({"command": command, **meta}, indent=2) + "\n")
+    print(json.dumps(report, indent=2))
+    print(f"wrote {out} and {out.with_suffix('.json')}")
+    return 0
+
+
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
+    """Adds ``critic data`` and ``critic train``."""
+    p = subparsers.add_parser(
+        "critic",
+        help="the learned grasp critic: generate its data, train it",
+        description=__doc__.split("\n\n")[0] if __doc__ else None,
+    )
+    sub = p.add_subparsers(dest="critic_command", metavar="STEP", required=True)
+    d = sub.add_parser(
+        "data",
+        help="try grasp candidates of HEAPGrasp phases on train-split scenes",
+        description=(
+            "Runs HEAPGrasp (or no-vp) phases with antipodal grasps on train-split scenes, "
+            "even scenes from above, odd ones from the default start, and executes every "
+            "candidate from a saved physics state. One OUT/scene_SEED.npz per scene; "
+            "existing files are kept, so a rerun continues."
+        ),
+    )
+    d.add_argument("--scenes", type=int_at_least(1), default=240, help="scenes (default 240)")
+    d.add_argument(
+        "--seed", type=int_at_least(0), default=1000, help="seed of scene 0 (default 1000)"
+    )
+    d.add_argument(
+        "--epsilon",
+        type=float_in(0.0, 1.0),
+        default=0.2,
+        help="candidate threshold for the data, below the deployed 0.4 (default 0.2)",
+    )
+    d.add_argument(
+        "--max-candidates", type=int_at_least(1), default=12, help="tried per phase (12)"
+    )
+    d.add_argument("--max-phases", type=int_at_least(1), default=4, help="phases per scene (4)")
+    d.add_argument(
+        "--method",
+        choices=("heapgrasp", "no-vp"),
+        default="heapgrasp",
+        help="whose hulls: HEAPGrasp's oracle views or no-vp's circle (heapgrasp)",
+    )
+    d.add_argument("--workers", type=int_at_least(1), default=1, help="processes (default 1)")
+    d.add_argument("--out", required=True, help="folder of the scene files")
+    d.set_defaults(func=_data)
+
+    t = sub.add_parser(
+        "train",
+        help="cross-validate and fit the critic on scene files",
+        description=(
+            "Cross-validates by scene, fits PCA + logistic regression on all scenes and "
+            "writes the critic (.npz) and its report (.json)."
+        ),
+    )
+    t.add_argument("data", help="folder of scene files from 'heapgrasp critic data'")
+    t.add_argument("--out", required=True, help="critic file to write (.npz)")
+    t.add_argument("--components", type=int_at_least(1), default=16, help="PCA components (16)")
+    t.add_argument("--l2", type=float_in(0.0), default=10.0, help="L2 penalty (10)")
+    t.add_argument(
+        "--threshold",
+        type=float_in(0.0, 1.0),
+        default=0.7,
+        help="probability below which candidates are dropped: the critic's ε (0.7)",
+    )
+    t.add_argument(
+        "--report-thresholds",
+        type=lambda s: [float_in(0.0, 1.0)(v) for v in s.split(",")],
+        default=[0.5, 0.6, 0.7, 0.8],
+        help="thresholds the report evaluates (comma-separated)",
+    )
+    t.add_argument("--epsilon", type=float_in(0.0, 1.0), default=0.4, help="deployed ε (0.4)")
+    t.add_argument(
+        "--candidate-epsilon",
+        type=float_in(0.0, 1.0),
+        default=0.2,
+        help="ε of the planner's candidates the critic sees: the data's --epsilon (0.2)",
+    )
+    t.add_argument("--folds", type=int_at_least(2), default=5, help="folds (5)")
+    t.add_argument("--cube-size", type=float_in(0.0, open_low=True), default=0.30)
+    t.add_argument("--resolution", type=int_at_least(8), default=40)
+    t.set_defaults(func=_train)
+    return p

@@ -1,0 +1,218 @@
+"""Training data for the grasp critic: grasp candidates on measured hulls, each tried in
+the simulator.
+
+For every scene (seed ``seed + i``, objects of the **train** split, so none of the
+benchmark's test objects) a phase of ``method`` runs as it does in ``heapgrasp run``
+(HEAPGrasp's oracle views or no-vp's circle, the antipodal planner, Table I
+parameters), from the start above the scene for even scenes and from the default start
+for odd ones. On the phase's final
+grid every candidate of :func:`~heapgrasp.grasping.volumes.select_candidates` at a low
+threshold (``epsilon``, up to ``max_candidates``) is executed with VGN's protocol
+(:func:`~heapgrasp.sim.gripper.execute_grasp`) from a saved physics state, which is
+restored after each try, so each candidate is labelled by what it would have done. An
+object one of them picked is then removed, and the next phase starts, up to
+``max_phases`` phases.
+
+Each scene is written as ``OUT/scene_SEED.npz`` (scenes already there are skipped, so
+an interrupted run continues): per phase the planner's input grid, the untrimmed
+high-confidence grid ``Ŝ≥λ`` and the camera positions of its frames; per candidate the
+phase, TCP pose, width, score and outcome (:class:`~heapgrasp.sim.gripper.GraspOutcome`
+value).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from heapgrasp.config import RunConfig
+
+__all__ = ["CriticDataConfig", "generate", "load_dataset", "scene_data"]
+
+F64 = npt.NDArray[np.float64]
+
+TOP_START = {"initial_radius": 0.6, "initial_theta": 0.0}
+"""The start above the scene of ``docs/benchmarks.md`` (even scenes)."""
+
+
+@dataclass(frozen=True)
+class CriticDataConfig:
+    """What :func:`generate` runs."""
+
+    scenes: int = 100
+    seed: int = 1000
+    epsilon: float = 0.2
+    max_candidates: int = 12
+    max_phases: int = 4
+    objects: int = 5
+    method: str = "heapgrasp"
+    """``heapgrasp`` (oracle views) or ``no-vp`` (the circle): whose hulls to sample."""
+
+    def __post_init__(self) -> None:
+        if self.method not in ("heapgrasp", "no-vp"):
+            raise ValueError(f"method must be 'heapgrasp' or 'no-vp', got {self.method!r}")
+        if self.scenes < 1:
+            raise ValueError(f"scenes must be >= 1, got {self.scenes}")
+        if not 0.0 <= self.epsilon <= 1.0:
+            raise ValueError(f"epsilon must be in [0, 1], got {self.epsilon}")
+        if self.max_candidates < 1:
+            raise ValueError(f"max_candidates must be >= 1, got {self.max_candidates}")
+        if self.max_phases < 1:
+            raise ValueError(f"max_phases must be >= 1, got {self.max_phases}")
+        if self.objects < 1:
+            raise ValueError(f"objects must be >= 1, got {self.objects}")
+
+    def run_config(self, index: int) -> RunConfig:
+        """The pipeline's configuration for scene ``index``."""
+        start = TOP_START if index % 2 == 0 else {}
+        return RunConfig(
+            method=self.method,
+            split="train",
+            objects=self.objects,
+            seed=self.seed,
+            **start,  # type: ignore[arg-type]
+        )
+
+
+def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
+    """Runs scene ``index`` and returns its arrays (see the module docstring)."""
+    import pybullet as pb
+
+    from heapgrasp.config import object_library
+    from heapgrasp.grasping.volumes import select_candidates
+    from heapgrasp.perception import SilhouettePerception
+    from heapgrasp.pipeline import build_pipeline
+    from heapgrasp.sim.gripper import Grasp, GraspOutcome, execute_grasp
+    from heapgrasp.sim.optics import DepthModel
+    from heapgrasp.sim.world import SimWorld, WorldConfig
+
+    run_config = config.run_config(index)
+    seed = config.seed + index
+    categories = ("transparent", "opaque", "specular", "mixed")
+    inputs, highs, cameras = [], [], []
+    rows: list[dict[str, Any]] = []
+    with SimWorld(
+        object_library(run_config),
+        config=WorldConfig(cube_size=run_config.cube_size),
+        depth_model=DepthModel(ideal=run_config.ideal_depth),
+        seed=seed,
+    ) as world:
+        world.reset(
+            layout=run_config.layout,  # type: ignore[arg-type]
+            n_objects=run_config.objects,
+            category=categories[index % 4],
+            seed=seed,
+            split="train",
+        )
+        pipeline = build_pipeline(run_config, world, seed=seed)
+        perception = pipeline.perception
+        if not isinstance(perception, SilhouettePerception):
+            raise TypeError("the critic's data needs a silhouette method")
+        for phase in range(config.max_phases):
+            if not world.objects:
+                break
+            pipeline.plan()
+            grid = perception.grasp_input()
+            volumes = pipeline.grasp_planner.predict(grid, pipeline.frame)
+            sigma = getattr(pipeline.grasp_planner, "sigma", 1.0)
+            candidates = select_candidates(
+                volumes, epsilon=config.epsilon, sigma=sigma, nms_window=run_config.nms_window
+            )[: config.max_candidates]
+            if not candidates:
+                break
+            inputs.append(grid > 0.5)
+            highs.append(perception.grid.high_confidence(run_config.lam) > 0.5)
+            cameras.append(np.stack([v.cam2world[:3, 3] for v in perception.views]))
+            state = pb.saveState(physicsClientId=world.client)
+            picked: int | None = None
+            for c in candidates:
+                result = execute_grasp(pipeline.robot, Grasp(c.pose, min(c.width, 0.08)))
+                rows.append(
+                    {
+                        "phase": phase,
+                        "pose": c.pose,
+                        "width": c.width,
+                        "score": c.score,
+                        "outcome": result.outcome.value,
+                    }
+                )
+                if result.outcome == GraspOutcome.SUCCESS and picked is None:
+                    picked = result.object_id
+                pb.restoreState(state, physicsClientId=world.client)
+                world.sync()
+                pipeline.robot.park()
+            pb.removeState(state, physicsClientId=world.client)
+            if picked is None or picked not in world.objects:
+                break
+            world.remove(picked)
+            world.step(0.5)
+            world.sync()
+    n_cams = [len(c) for c in cameras]
+    return {
+        "seed": np.int64(seed),
+        "start": np.str_("top" if index % 2 == 0 else "default"),
+        "method": np.str_(config.method),
+        "grasp_input": np.stack(inputs) if inputs else np.zeros((0, 0, 0, 0), bool),
+        "high": np.stack(highs) if highs else np.zeros((0, 0, 0, 0), bool),
+        "camera_positions": np.concatenate(cameras) if cameras else np.zeros((0, 3)),
+        "camera_counts": np.asarray(n_cams, dtype=np.int64),
+        "phase": np.asarray([r["phase"] for r in rows], dtype=np.int64),
+        "pose": np.asarray([r["pose"] for r in rows], dtype=np.float64).reshape(-1, 4, 4),
+        "width": np.asarray([r["width"] for r in rows], dtype=np.float64),
+        "score": np.asarray([r["score"] for r in rows], dtype=np.float64),
+        "outcome": np.asarray([r["outcome"] for r in rows], dtype=np.str_),
+    }
+
+
+def _one(args: tuple[CriticDataConfig, int, str]) -> str:
+    config, index, out = args
+    path = Path(out) / f"scene_{config.seed + index:06d}.npz"
+    data = scene_data(config, index)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez_compressed(tmp, **data)
+    os.replace(tmp, path)
+    return str(path)
+
+
+def _init_worker() -> None:
+    os.environ["HEAPGRASP_NUM_THREADS"] = "1"
+
+
+def generate(config: CriticDataConfig, out: Path, *, workers: int = 1) -> list[Path]:
+    """Writes ``OUT/scene_SEED.npz`` for every scene not yet there; returns all paths."""
+    from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
+
+    out.mkdir(parents=True, exist_ok=True)
+    todo = [
+        i for i in range(config.scenes) if not (out / f"scene_{config.seed + i:06d}.npz").exists()
+    ]
+    jobs = [(config, i, str(out)) for i in todo]
+    bar = tqdm(
+        total=config.scenes, initial=config.scenes - len(todo), unit="scene", file=sys.stderr
+    )
+    if workers <= 1:
+        for job in jobs:
+            _one(job)
+            bar.update()
+    else:
+        with ProcessPoolExecutor(workers, initializer=_init_worker) as pool:
+            for _ in pool.map(_one, jobs):
+                bar.update()
+    bar.close()
+    return [out / f"scene_{config.seed + i:06d}.npz" for i in range(config.scenes)]
+
+
+def load_dataset(paths: list[Path]) -> list[dict[str, Any]]:
+    """Reads scene files written by :func:`generate`."""
+    scenes = []
+    for p in paths:
+        with np.load(p) as data:
+            scenes.append({k: data[k] for k in data.files})
+    return scenes

@@ -1,0 +1,238 @@
+"""The learned grasp critic: features in the grasp frame, the model, its file, its data."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import box_model
+from heapgrasp.config import ConfigError, RunConfig
+from heapgrasp.grasping.critic import (
+    CROP_SHAPE,
+    N_SCALARS,
+    GraspCritic,
+    candidate_features,
+    crop_in_grasp_frame,
+    fit_logistic,
+    flip_pose,
+    view_features,
+)
+from heapgrasp.grasping.critic_train import auc, cross_validate, design_matrix
+from heapgrasp.grasping.volumes import GraspCandidate, GridFrame
+from heapgrasp.pipeline import build_pipeline, make_critic
+from heapgrasp.sim.objects import ObjectLibrary
+from heapgrasp.sim.protocol import StopReason, run_clutter_removal
+from heapgrasp.sim.world import SimWorld
+
+FRAME = GridFrame((0.0, 0.0, 0.0), 0.30, 40)
+N_CROP = int(np.prod(CROP_SHAPE))
+
+
+def top_down(x: float, y: float, z: float, yaw: float = 0.0) -> np.ndarray:
+    """TCP pose approaching straight down, fingers closing along (cos yaw, sin yaw)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    pose = np.eye(4)
+    pose[:3, 1] = [c, s, 0.0]
+    pose[:3, 2] = [0.0, 0.0, -1.0]
+    pose[:3, 0] = np.cross(pose[:3, 1], pose[:3, 2])
+    pose[:3, 3] = [x, y, z]
+    return pose
+
+
+def box_grid() -> np.ndarray:
+    g = np.zeros((40, 40, 40), dtype=np.float32)
+    g[17:23, 15:25, 0:8] = 1.0  # 4.5 × 7.5 × 6 cm
+    return g
+
+
+def test_crop_reads_the_grid_in_the_grasp_frame() -> None:
+    g = box_grid()
+    centre = FRAME.centers([19, 19, 5])
+    crop = crop_in_grasp_frame(g, FRAME, top_down(*centre)).reshape(CROP_SHAPE)
+    # Lattice index (3, 6, 6) is the TCP: inside the box.
+    assert crop[3, 6, 6] == 1.0
+    # Behind the TCP (toward the palm, z index < 6) is above the box: free.
+    assert crop[3, 6, 0] == 0.0
+    # Beyond the TCP lies the table: occupied below the grid's bottom face.
+    assert crop[3, 6, -1] == 1.0
+    # Unyawed the fingers close along x, across the box's short side; yawed along y.
+    yawed = crop_in_grasp_frame(g, FRAME, top_down(*centre, yaw=np.pi / 2)).reshape(CROP_SHAPE)
+    assert crop[3, 6 + 5, 6] == 0.0 and yawed[3, 6 + 5, 6] == 1.0
+
+
+def test_flipped_pose_mirrors_the_crop() -> None:
+    g = box_grid()
+    pose = top_down(*FRAME.centers([18, 17, 4]), yaw=0.3)
+    a = crop_in_grasp_frame(g, FRAME, pose).reshape(CROP_SHAPE)
+    b = crop_in_grasp_frame(g, FRAME, flip_pose(pose)).reshape(CROP_SHAPE)
+    assert a.sum() > 0
+    np.testing.assert_array_equal(a[::-1, ::-1, :], b)
+
+
+def test_crop_rejects_a_bad_pose() -> None:
+    with pytest.raises(ValueError, match="pose"):
+        crop_in_grasp_frame(box_grid(), FRAME, np.full((4, 4), np.nan))
+
+
+def test_view_features_tell_one_sided_views_from_views_all_around() -> None:
+    pose = top_down(0.15, 0.15, 0.03)
+    ring = [
+        [0.15 + 0.3 * np.cos(a), 0.15 + 0.3 * np.sin(a), 0.3]
+        for a in np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    ]
+    one_side = [[0.15, 0.15 - 0.3, 0.3 + 0.01 * k] for k in range(12)]
+    around, side = view_features(pose, ring), view_features(pose, one_side)
+    assert around[3] < 0.05 and side[3] > 0.99
+    with pytest.raises(ValueError, match="camera"):
+        view_features(pose, np.zeros((0, 3)))
+
+
+def test_candidate_features_have_the_documented_layout() -> None:
+    g = box_grid()
+    pose = top_down(*FRAME.centers([19, 19, 5]))
+    f = candidate_features(g, g, FRAME, pose, 0.05, 0.7, [[0.15, 0.15, 0.5]])
+    assert f.shape == (2 * N_CROP + N_SCALARS,)
+    assert f[2 * N_CROP] == 0.7  # the planner's score first
+    with pytest.raises(ValueError, match="shape"):
+        candidate_features(g, g[:20], FRAME, pose, 0.05, 0.7, [[0.15, 0.15, 0.5]])
+
+
+def test_logistic_regression_separates_a_linear_rule() -> None:
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(400, 3))
+    y = (x[:, 0] - 2 * x[:, 1] > 0).astype(float)
+    w = fit_logistic(x, y, l2=0.1)
+    pred = (np.hstack([x, np.ones((400, 1))]) @ w) > 0
+    assert np.mean(pred == (y > 0.5)) > 0.95
+    assert w[0] > 0 > w[1]
+    with pytest.raises(ValueError, match="len"):
+        fit_logistic(x, y[:10])
+
+
+def test_auc() -> None:
+    assert auc([0.1, 0.2, 0.8, 0.9], [0, 0, 1, 1]) == 1.0
+    assert auc([0.9, 0.8, 0.2, 0.1], [0, 0, 1, 1]) == 0.0
+    assert auc([0.5, 0.5], [0, 1]) == 0.5
+    assert np.isnan(auc([0.5, 0.5], [1, 1]))
+
+
+def synthetic_critic(rng: np.random.Generator) -> tuple[GraspCritic, np.ndarray, np.ndarray]:
+    n = 2 * N_CROP + N_SCALARS
+    x = rng.random((200, n)).round()
+    x[:, 2 * N_CROP] = rng.random(200)
+    y = (x[:, 2 * N_CROP] > 0.5).astype(float)
+    return GraspCritic.fit(x, y, components=4, l2=1.0), x, y
+
+
+def test_critic_learns_and_round_trips_through_its_file(tmp_path: Path) -> None:
+    critic, x, y = synthetic_critic(np.random.default_rng(1))
+    p = critic.probability(x)
+    assert auc(p, y) > 0.95
+    path = tmp_path / "critic.npz"
+    critic.save(path, command="heapgrasp critic train d --out critic.npz", metadata={"a": 1})
+    back = GraspCritic.load(path)
+    np.testing.assert_allclose(back.probability(x), p, atol=1e-5)
+    assert back.metadata["command"].startswith("heapgrasp critic train")
+    assert back.metadata["a"] == 1
+
+
+def test_critic_file_errors_name_the_file(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="nothere"):
+        GraspCritic.load(tmp_path / "nothere.npz")
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, something=np.zeros(3))
+    with pytest.raises(ValueError, match=r"bad\.npz"):
+        GraspCritic.load(bad)
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match=r"junk\.npz"):
+        GraspCritic.load(junk)
+
+
+def test_critic_arrays_must_fit_together() -> None:
+    critic, _, _ = synthetic_critic(np.random.default_rng(2))
+    with pytest.raises(ValueError, match="fit together"):
+        GraspCritic(critic.mean, critic.scale, critic.components, critic.weights[:-2])
+    with pytest.raises(ValueError, match="threshold"):
+        GraspCritic(critic.mean, critic.scale, critic.components, critic.weights, 1.5)
+
+
+def candidates_on_the_box() -> list[GraspCandidate]:
+    out = []
+    for k, (i, j) in enumerate([(19, 19), (19, 17), (30, 30)]):
+        pose = top_down(*FRAME.centers([i, j, 5]))
+        out.append(GraspCandidate(pose, 0.06, 0.9 - 0.1 * k, (i, j, 5)))
+    return out
+
+
+def test_rescore_puts_the_probability_in_place_of_the_score() -> None:
+    critic, _, _ = synthetic_critic(np.random.default_rng(3))
+    g = box_grid()
+    cands = candidates_on_the_box()
+    cams = [[0.15, 0.0, 0.4]]
+    prob = critic.score_candidates(cands, g, g, FRAME, cams)
+    assert prob.shape == (3,) and np.all((prob >= 0) & (prob <= 1))
+    critic.threshold = 0.0
+    ranked = critic.rescore(cands, g, g, FRAME, cams)
+    assert [c.score for c in ranked] == sorted(prob.tolist(), reverse=True)
+    assert {c.index for c in ranked} == {c.index for c in cands}
+    critic.threshold = float(np.median(prob))
+    kept = critic.rescore(cands, g, g, FRAME, cams)
+    assert all(c.score >= critic.threshold for c in kept) and 1 <= len(kept) <= 2
+    critic.threshold = 1.0
+    assert critic.rescore(cands, g, g, FRAME, cams) == []  # logits are clipped: p < 1
+    assert critic.rescore([], g, g, FRAME, cams) == []
+
+
+def test_config_and_builder_errors(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="grasp_critic"):
+        RunConfig(method="vgn", grasp_critic="default")
+    with pytest.raises(ConfigError, match="grasp_critic"):
+        RunConfig(grasp_critic="")
+    assert make_critic(RunConfig()) is None
+    with pytest.raises(ConfigError, match="critic_threshold"):
+        RunConfig(critic_threshold=1.5)
+    with pytest.raises(FileNotFoundError, match=r"missing\.npz"):
+        make_critic(RunConfig(grasp_critic=str(tmp_path / "missing.npz")))
+
+
+def test_shipped_critic_loads_with_its_command_and_measurements() -> None:
+    critic = make_critic(RunConfig(grasp_critic="default"))
+    assert critic is not None
+    lowered = make_critic(RunConfig(grasp_critic="default", critic_threshold=0.25))
+    assert lowered is not None and lowered.threshold == 0.25
+    meta = critic.metadata
+    assert meta["command"].startswith("heapgrasp critic train")
+    cv = meta["cross_validation"]
+    assert 0.5 < cv["auc_critic"] <= 1.0
+    assert cv["candidates"] > 500
+
+
+def test_loop_with_the_shipped_critic_grasps_a_lone_box(tmp_path: Path) -> None:
+    model = box_model(tmp_path, (0.05, 0.04, 0.07))
+    config = RunConfig(objects=1, category="opaque", grasp_critic="default")
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        pipeline = build_pipeline(config, world)
+        assert pipeline.critic is not None
+        phases, reason = run_clutter_removal(pipeline.robot, pipeline.plan)
+    assert reason == StopReason.CLEARED, [p.to_dict()["outcome"] for p in phases]
+
+
+def test_data_of_one_scene_is_consistent_and_trains() -> None:
+    from heapgrasp.grasping.critic_data import CriticDataConfig, scene_data
+
+    config = CriticDataConfig(scenes=1, objects=2, max_phases=1, max_candidates=3)
+    s = scene_data(config, 0)
+    n = len(s["phase"])
+    assert n >= 1 and s["pose"].shape == (n, 4, 4)
+    assert s["grasp_input"].shape == (1, 40, 40, 40)
+    assert s["camera_counts"].sum() == len(s["camera_positions"]) > 10
+    assert set(s["outcome"]) <= {"success", "empty", "collision", "unreachable"}
+    # Five copies of the scene make a design for 5-fold cross-validation.
+    design = design_matrix([s] * 5, FRAME)
+    assert len(design) == 5 * n and design.features.shape[0] == 10 * n
+    if 0 < design.labels.mean() < 1:
+        report = cross_validate(design, components=2, l2=10.0, thresholds=[0.5])
+        assert report["candidates"] == 5 * n
