@@ -236,3 +236,33 @@ def test_data_of_one_scene_is_consistent_and_trains() -> None:
     if 0 < design.labels.mean() < 1:
         report = cross_validate(design, components=2, l2=10.0, thresholds=[0.5])
         assert report["candidates"] == 5 * n
+
+
+@pytest.mark.parametrize("at_waypoints", [True, False])
+def test_critic_at_waypoints_decides_where_it_scores(tmp_path: Path, at_waypoints: bool) -> None:
+    model = box_model(tmp_path, (0.05, 0.04, 0.07))
+    config = RunConfig(
+        objects=1,
+        category="opaque",
+        grasp_critic="default",
+        critic_at_waypoints=at_waypoints,
+        critic_threshold=0.0,
+    )
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        pipeline = build_pipeline(config, world)
+        plain = build_pipeline(config.replace({"grasp_critic": "none"}), world)
+        frames = [world.capture(pipeline.initial_pose(), pipeline.camera)]
+        pipeline.perception.update(frames)
+        plain.perception.update(frames)
+        waypoint = pipeline.grasp_candidates(final=False)
+        final = pipeline.grasp_candidates()
+        reference = plain.grasp_candidates()
+    assert reference, "the lone box must have candidates"
+    # At the final grid the critic's probabilities are the scores (any order of them).
+    assert {c.index for c in final} >= {c.index for c in reference}
+    assert [c.score for c in final] == sorted((c.score for c in final), reverse=True)
+    if at_waypoints:
+        assert [c.score for c in waypoint] == [c.score for c in final]
+    else:
+        assert [(c.index, c.score) for c in waypoint] == [(c.index, c.score) for c in reference]

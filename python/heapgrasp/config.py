@@ -121,6 +121,9 @@ class RunConfig:
     (:mod:`heapgrasp.grasping.critic`; silhouette methods only): ``none``, ``default``
     (the weights shipped with the package, ``docs/critic.md``) or the path of a critic
     file written by ``heapgrasp critic train``."""
+    critic_at_waypoints: bool = True
+    """The critic also scores the candidates at HEAPGrasp's view waypoints (the target
+    grasp of eq. 16-19); False: at the final grid only."""
     critic_threshold: float | None = None
     """Probability below which the critic drops a candidate (its ε); None = the one
     stored in the critic file."""

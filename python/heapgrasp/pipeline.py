@@ -167,9 +167,12 @@ class Pipeline:
         self.perception.update(frames)
         return time.perf_counter() - t0
 
-    def grasp_candidates(self) -> list[GraspCandidate]:
-        """Grasp planning on the current grid and eq. 15's post-processing."""
+    def grasp_candidates(self, *, final: bool = True) -> list[GraspCandidate]:
+        """Grasp planning on the current grid and eq. 15's post-processing; with a
+        critic, its probabilities are the scores, at the final grid and (when
+        ``critic_at_waypoints``) at the view waypoints too."""
         cfg = self.config
+        critic = self.critic if (final or cfg.critic_at_waypoints) else None
         if (
             isinstance(self.perception, DepthPerception)
             and getattr(self.grasp_planner, "input_kind", "occupancy") == "tsdf"
@@ -181,8 +184,8 @@ class Pipeline:
         sigma = cfg.sigma if cfg.sigma is not None else getattr(self.grasp_planner, "sigma", 1.0)
         if cfg.epsilon is not None:
             eps = cfg.epsilon
-        elif self.critic is not None:  # the critic's own ε applies to its probabilities
-            eps = self.critic.candidate_epsilon
+        elif critic is not None:  # the critic's own ε applies to its probabilities
+            eps = critic.candidate_epsilon
         else:
             eps = getattr(self.grasp_planner, "epsilon", 0.8)
         cands = select_candidates(
@@ -195,8 +198,8 @@ class Pipeline:
                 for c in cands
                 if np.min(np.linalg.norm(failed - c.position, axis=1)) > cfg.failed_grasp_radius
             ]
-        if self.critic is not None and isinstance(self.perception, SilhouettePerception):
-            cands = self.critic.rescore(
+        if critic is not None and isinstance(self.perception, SilhouettePerception):
+            cands = critic.rescore(
                 cands,
                 grid,
                 self.perception.grid.high_confidence(cfg.lam),
@@ -266,7 +269,7 @@ class Pipeline:
             assert self.view_scorer is not None
             for ell in range(cfg.L):
                 t0 = time.perf_counter()
-                cands = self.grasp_candidates()
+                cands = self.grasp_candidates(final=False)
                 # No candidate at this waypoint: no target, and eq. 18 uses s alone.
                 target = select_target(cands, target, cfg.gamma1)
                 t1 = time.perf_counter()
