@@ -127,7 +127,7 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
         views = _ScriptedViews()
         pipeline = build_pipeline(RunConfig(), world, view_scorer=views)
         calls = iter(script)
-        pipeline.grasp_candidates = lambda: next(calls)  # type: ignore[method-assign]
+        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
         result = pipeline.plan()
     targets = [w["target"]["position"][0] for w in result.extra["waypoints"]]
     assert targets == pytest.approx([0.05, 0.25, 0.24])
