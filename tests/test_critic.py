@@ -29,14 +29,15 @@ FRAME = GridFrame((0.0, 0.0, 0.0), 0.30, 40)
 N_CROP = int(np.prod(CROP_SHAPE))
 
 
-def top_down(x: float, y: float, z: float, yaw: float = 0.0) -> np.ndarray:
-    """TCP pose approaching straight down, fingers closing along (cos yaw, sin yaw)."""
+def top_down(position: np.ndarray, yaw: float = 0.0) -> np.ndarray:
+    """TCP pose at ``position`` approaching straight down, fingers closing along
+    (cos yaw, sin yaw)."""
     c, s = np.cos(yaw), np.sin(yaw)
     pose = np.eye(4)
     pose[:3, 1] = [c, s, 0.0]
     pose[:3, 2] = [0.0, 0.0, -1.0]
     pose[:3, 0] = np.cross(pose[:3, 1], pose[:3, 2])
-    pose[:3, 3] = [x, y, z]
+    pose[:3, 3] = position
     return pose
 
 
@@ -49,7 +50,7 @@ def box_grid() -> np.ndarray:
 def test_crop_reads_the_grid_in_the_grasp_frame() -> None:
     g = box_grid()
     centre = FRAME.centers([19, 19, 5])
-    crop = crop_in_grasp_frame(g, FRAME, top_down(*centre)).reshape(CROP_SHAPE)
+    crop = crop_in_grasp_frame(g, FRAME, top_down(centre)).reshape(CROP_SHAPE)
     # Lattice index (3, 6, 6) is the TCP: inside the box.
     assert crop[3, 6, 6] == 1.0
     # Behind the TCP (toward the palm, z index < 6) is above the box: free.
@@ -57,13 +58,13 @@ def test_crop_reads_the_grid_in_the_grasp_frame() -> None:
     # Beyond the TCP lies the table: occupied below the grid's bottom face.
     assert crop[3, 6, -1] == 1.0
     # Unyawed the fingers close along x, across the box's short side; yawed along y.
-    yawed = crop_in_grasp_frame(g, FRAME, top_down(*centre, yaw=np.pi / 2)).reshape(CROP_SHAPE)
+    yawed = crop_in_grasp_frame(g, FRAME, top_down(centre, yaw=np.pi / 2)).reshape(CROP_SHAPE)
     assert crop[3, 6 + 5, 6] == 0.0 and yawed[3, 6 + 5, 6] == 1.0
 
 
 def test_flipped_pose_mirrors_the_crop() -> None:
     g = box_grid()
-    pose = top_down(*FRAME.centers([18, 17, 4]), yaw=0.3)
+    pose = top_down(FRAME.centers([18, 17, 4]), yaw=0.3)
     a = crop_in_grasp_frame(g, FRAME, pose).reshape(CROP_SHAPE)
     b = crop_in_grasp_frame(g, FRAME, flip_pose(pose)).reshape(CROP_SHAPE)
     assert a.sum() > 0
@@ -76,7 +77,7 @@ def test_crop_rejects_a_bad_pose() -> None:
 
 
 def test_view_features_tell_one_sided_views_from_views_all_around() -> None:
-    pose = top_down(0.15, 0.15, 0.03)
+    pose = top_down(np.array([0.15, 0.15, 0.03]))
     ring = [
         [0.15 + 0.3 * np.cos(a), 0.15 + 0.3 * np.sin(a), 0.3]
         for a in np.linspace(0, 2 * np.pi, 12, endpoint=False)
@@ -90,7 +91,7 @@ def test_view_features_tell_one_sided_views_from_views_all_around() -> None:
 
 def test_candidate_features_have_the_documented_layout() -> None:
     g = box_grid()
-    pose = top_down(*FRAME.centers([19, 19, 5]))
+    pose = top_down(FRAME.centers([19, 19, 5]))
     f = candidate_features(g, g, FRAME, pose, 0.05, 0.7, [[0.15, 0.15, 0.5]])
     assert f.shape == (2 * N_CROP + N_SCALARS,)
     assert f[2 * N_CROP] == 0.7  # the planner's score first
@@ -161,7 +162,7 @@ def test_critic_arrays_must_fit_together() -> None:
 def candidates_on_the_box() -> list[GraspCandidate]:
     out = []
     for k, (i, j) in enumerate([(19, 19), (19, 17), (30, 30)]):
-        pose = top_down(*FRAME.centers([i, j, 5]))
+        pose = top_down(FRAME.centers([i, j, 5]))
         out.append(GraspCandidate(pose, 0.06, 0.9 - 0.1 * k, (i, j, 5)))
     return out
 
@@ -220,7 +221,8 @@ def test_loop_with_the_shipped_critic_grasps_a_lone_box(tmp_path: Path) -> None:
     assert reason == StopReason.CLEARED, [p.to_dict()["outcome"] for p in phases]
 
 
-def test_data_of_one_scene_is_consistent_and_trains() -> None:
+def test_data_of_one_scene_is_consistent_and_trains(tmp_path: Path) -> None:
+    from heapgrasp.cli import main
     from heapgrasp.grasping.critic_data import CriticDataConfig, scene_data
 
     config = CriticDataConfig(scenes=1, objects=2, max_phases=1, max_candidates=3)
@@ -236,6 +238,19 @@ def test_data_of_one_scene_is_consistent_and_trains() -> None:
     if 0 < design.labels.mean() < 1:
         report = cross_validate(design, components=2, l2=10.0, thresholds=[0.5])
         assert report["candidates"] == 5 * n
+    # The command line: an empty folder is an error; five scene files make a critic.
+    data = tmp_path / "data"
+    data.mkdir()
+    assert main(["critic", "train", str(data), "--out", str(tmp_path / "c.npz")]) == 1
+    for k in range(5):  # both classes, whatever happened in the simulator
+        labelled = dict(s, outcome=np.full(n, "success" if k % 2 else "empty"))
+        np.savez(data / f"scene_{k:06d}.npz", **labelled)
+    out = tmp_path / "c.npz"
+    assert main(["critic", "train", str(data), "--out", str(out), "--components", "2"]) == 0
+    critic = GraspCritic.load(out)
+    assert critic.metadata["scenes"] == 5
+    assert critic.metadata["command"].startswith("heapgrasp critic train")
+    assert (tmp_path / "c.json").is_file()
 
 
 @pytest.mark.parametrize("at_waypoints", [True, False])

@@ -121,15 +121,20 @@ def phase_picks(design: Design, prob: F64, threshold: float, epsilon: float) -> 
                 float(kept.size == 0),
             ]
         )
+
+    def mean(column: F64) -> float | None:  # None when no phase had a candidate
+        finite = column[np.isfinite(column)]
+        return float(finite.mean()) if finite.size else None
+
     out: dict[str, Any] = {}
     for name, values in sorted(rows.items()):
-        a = np.asarray(values)
+        a = np.asarray(values, dtype=np.float64)
         out[f"{name}_start"] = {
             "phases": len(a),
-            "planner_pick_success": float(np.nanmean(a[:, 0])),
-            "critic_pick_success": float(np.nanmean(a[:, 1])),
-            "planner_kept_success": float(np.nanmean(a[:, 2])),
-            "critic_kept_success": float(np.nanmean(a[:, 3])),
+            "planner_pick_success": mean(a[:, 0]),
+            "critic_pick_success": mean(a[:, 1]),
+            "planner_kept_success": mean(a[:, 2]),
+            "critic_kept_success": mean(a[:, 3]),
             "planner_no_candidate": int(a[:, 4].sum()),
             "critic_no_candidate": int(a[:, 5].sum()),
         }
