@@ -78,11 +78,17 @@ def _lattice() -> F64:
 _LATTICE = _lattice()
 
 
+def _occupied(grid: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+    """``grid > 0.5`` (a bool grid as it is, without a copy)."""
+    g = np.asarray(grid)
+    return g if g.dtype == np.bool_ else np.asarray(g > 0.5)
+
+
 def crop_in_grasp_frame(grid: npt.ArrayLike, frame: GridFrame, pose: npt.ArrayLike) -> F64:
     """``grid`` (R³, occupied > 0.5) sampled at :data:`CROP_SHAPE` points of the TCP
     frame ``pose`` (nearest voxel); outside the grid 0, below the table 1. Returns the
     flattened crop as 0/1."""
-    g = np.asarray(grid) > 0.5
+    g = _occupied(grid)
     p = np.asarray(pose, dtype=np.float64)
     if p.shape != (4, 4) or not np.isfinite(p).all():
         raise ValueError(f"pose must be a finite (4, 4) matrix, got shape {p.shape}")
@@ -147,8 +153,8 @@ def candidate_features(
     """The feature vector of one candidate: the two crops, then :data:`N_SCALARS`
     scalars (see the module docstring)."""
     p = np.asarray(pose, dtype=np.float64)
-    g = np.asarray(grasp_input) > 0.5
-    h = np.asarray(high) > 0.5
+    g = _occupied(grasp_input)
+    h = _occupied(high)
     if g.shape != h.shape or g.shape != (frame.resolution,) * 3:
         raise ValueError(
             f"grids must both have shape {(frame.resolution,) * 3}, got {g.shape} and {h.shape}"
@@ -288,6 +294,7 @@ class GraspCritic:
         """``P(success)`` of each candidate (both finger assignments averaged)."""
         if not candidates:
             return np.zeros(0)
+        grasp_input, high = _occupied(grasp_input), _occupied(high)  # once for all rows
         rows = []
         for c in candidates:
             for pose in (c.pose, flip_pose(c.pose)):
