@@ -191,11 +191,24 @@ def test_config_and_builder_errors(tmp_path: Path) -> None:
         RunConfig(method="vgn", grasp_critic="default")
     with pytest.raises(ConfigError, match="grasp_critic"):
         RunConfig(grasp_critic="")
-    assert make_critic(RunConfig()) is None
+    assert make_critic(RunConfig(grasp_critic="none")) is None
     with pytest.raises(ConfigError, match="critic_threshold"):
         RunConfig(critic_threshold=1.5)
     with pytest.raises(FileNotFoundError, match=r"missing\.npz"):
         make_critic(RunConfig(grasp_critic=str(tmp_path / "missing.npz")))
+
+
+def test_auto_critic_applies_where_the_shipped_weights_were_trained() -> None:
+    for method in ("heapgrasp", "no-vp", "hemisphere6"):
+        assert RunConfig(method=method).critic == "default"
+    auto = make_critic(RunConfig())
+    assert auto is not None and auto.threshold == pytest.approx(0.6)
+    # vgn (TSDF) and the network planner are not what the weights were trained on.
+    assert RunConfig(method="vgn").critic is None
+    assert make_critic(RunConfig(method="vgn")) is None
+    assert RunConfig(grasp_planner="network").critic is None
+    assert RunConfig(grasp_critic="none").critic is None
+    assert RunConfig(grasp_critic="x.npz", method="no-vp").critic == "x.npz"
 
 
 def test_shipped_critic_loads_with_its_command_and_measurements() -> None:

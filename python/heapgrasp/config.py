@@ -116,11 +116,13 @@ class RunConfig:
     """Gaussian smoothing of the grasp scores (voxels); None = the grasp planner's own
     recommendation (1.0 for the VGN network, as VGN; see the analytic planner)."""
     nms_window: int = 4
-    grasp_critic: str = "none"
-    """Learned critic that drops candidates unlikely to hold an object
-    (:mod:`heapgrasp.grasping.critic`; silhouette methods only): ``none``, ``default``
-    (the weights shipped with the package, ``docs/critic.md``) or the path of a critic
-    file written by ``heapgrasp critic train``."""
+    grasp_critic: str = "auto"
+    """Learned critic that re-scores the grasp candidates and drops those unlikely to hold
+    an object (:mod:`heapgrasp.grasping.critic`; silhouette methods only): ``auto`` (the
+    weights shipped with the package, ``docs/critic.md``, wherever they apply: a
+    silhouette method with the antipodal planner they were trained on; none otherwise),
+    ``none``, ``default`` (the shipped weights, and an error where they cannot apply) or
+    the path of a critic file written by ``heapgrasp critic train``."""
     critic_at_waypoints: bool = True
     """The critic also scores the candidates at HEAPGrasp's view waypoints (the target
     grasp of eq. 16-19); False: at the final grid only."""
@@ -211,9 +213,10 @@ class RunConfig:
         choice("mount", MOUNTS)
         if not isinstance(self.grasp_critic, str) or not self.grasp_critic:
             raise ConfigError(
-                f"grasp_critic: must be 'none', 'default' or a file path; got {self.grasp_critic!r}"
+                "grasp_critic: must be 'auto', 'none', 'default' or a file path; "
+                f"got {self.grasp_critic!r}"
             )
-        if self.grasp_critic != "none" and self.method == "vgn":
+        if self.grasp_critic not in ("auto", "none") and self.method == "vgn":
             raise ConfigError("grasp_critic: needs a silhouette method (not vgn)")
 
         def between(name: str, lo: float, hi: float) -> None:
@@ -277,6 +280,18 @@ class RunConfig:
             "oracle_frames",
         ):
             at_least(name, 1)
+
+    @property
+    def critic(self) -> str | None:
+        """The critic this run uses: ``"default"`` (the shipped weights), a file path, or
+        None. ``grasp_critic = "auto"`` resolves to the shipped weights for a silhouette
+        method with the antipodal planner and to None otherwise."""
+        if self.grasp_critic == "none":
+            return None
+        if self.grasp_critic == "auto":
+            applies = self.method != "vgn" and self.grasp_planner == "antipodal"
+            return "default" if applies else None
+        return self.grasp_critic
 
     # ------------------------------------------------------------------ building
     @classmethod

@@ -431,10 +431,11 @@ def make_grasp_planner(config: RunConfig) -> GraspPlanner:
 
 
 def make_critic(config: RunConfig) -> GraspCritic | None:
-    """The configured grasp critic; None for ``grasp_critic = "none"``."""
-    if config.grasp_critic == "none":
+    """The configured grasp critic (:attr:`RunConfig.critic`); None where there is none."""
+    source = config.critic
+    if source is None:
         return None
-    path = DEFAULT_CRITIC if config.grasp_critic == "default" else Path(config.grasp_critic)
+    path = DEFAULT_CRITIC if source == "default" else Path(source)
     critic = GraspCritic.load(path)
     if config.critic_threshold is not None:
         critic.threshold = config.critic_threshold

@@ -56,10 +56,11 @@ class RunExistsError(ValueError):
 
 def _method_label(config: RunConfig) -> str:
     grasps = f"{config.grasp_planner} grasps"
-    if config.grasp_critic == "default":
+    critic = config.critic
+    if critic == "default":
         grasps += ", critic"
-    elif config.grasp_critic != "none":
-        grasps += f", critic {Path(config.grasp_critic).name}"
+    elif critic is not None:
+        grasps += f", critic {Path(critic).name}"
     if config.method == "heapgrasp":
         return f"heapgrasp ({config.view_planner} views, {grasps})"
     return f"{config.method} ({grasps})"

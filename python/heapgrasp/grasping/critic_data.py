@@ -77,6 +77,7 @@ class CriticDataConfig:
             split="train",
             objects=self.objects,
             seed=self.seed,
+            grasp_critic="none",  # the data are the planner's own candidates
             **start,  # type: ignore[arg-type]
         )
 
