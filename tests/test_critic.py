@@ -159,6 +159,45 @@ def test_critic_arrays_must_fit_together() -> None:
         GraspCritic(critic.mean, critic.scale, critic.components, critic.weights, 1.5)
 
 
+def test_cnn_critic_runs_in_numpy_as_in_torch_and_round_trips(tmp_path: Path) -> None:
+    torch = pytest.importorskip("torch")
+    from heapgrasp.grasping.critic_net import ARRAYS, ConvCritic, _torch_module
+
+    rng = np.random.default_rng(3)
+    _, x, y = synthetic_critic(rng)
+    critic = GraspCritic.fit(x, y, model="cnn", epochs=3, seed=1)
+    assert critic.model == "cnn" and critic.net is not None
+    again = GraspCritic.fit(x, y, model="cnn", epochs=3, seed=1)
+    assert again.net is not None
+    for name in ARRAYS:  # deterministic for a seed
+        np.testing.assert_array_equal(getattr(critic.net, name), getattr(again.net, name))
+    # The numpy forward pass is PyTorch's (same layouts, pooling bins, flattening).
+    net = _torch_module(8, 16, 64).double().eval()
+    layers = {"conv1": "conv1", "conv2": "conv2", "fc1": "fc1", "fc2": "fc2"}
+    state = {
+        f"{layer}.{kind}": torch.from_numpy(getattr(critic.net, f"{name}_{kind[0]}"))
+        for layer, name in layers.items()
+        for kind in ("weight", "bias")
+    }
+    net.load_state_dict(state)
+    z = (x - critic.mean) / critic.scale
+    with torch.no_grad():
+        expected = net(torch.from_numpy(z)).numpy()
+    np.testing.assert_allclose(critic.net.logits(z), expected, atol=1e-9)
+    # Its file (format version 2) gives the same probabilities back.
+    p = critic.probability(x)
+    assert np.all((p > 0) & (p < 1))
+    path = tmp_path / "cnn.npz"
+    critic.save(path, command="heapgrasp critic train d --model cnn --out cnn.npz")
+    back = GraspCritic.load(path)
+    assert back.model == "cnn" and back.metadata["model"] == "cnn"
+    np.testing.assert_allclose(back.probability(x), p, atol=1e-12)
+    with pytest.raises(ValueError, match="fc2_w"):
+        ConvCritic(*(getattr(critic.net, n) if n != "fc2_w" else np.zeros((2, 64)) for n in ARRAYS))
+    with pytest.raises(ValueError, match="model"):
+        GraspCritic.fit(x, y, model="forest")
+
+
 def candidates_on_the_box() -> list[GraspCandidate]:
     out = []
     for k, (i, j) in enumerate([(19, 19), (19, 17), (30, 30)]):
@@ -249,7 +288,7 @@ def test_data_of_one_scene_is_consistent_and_trains(tmp_path: Path) -> None:
     design = design_matrix([s] * 5, FRAME)
     assert len(design) == 5 * n and design.features.shape[0] == 10 * n
     if 0 < design.labels.mean() < 1:
-        report = cross_validate(design, components=2, l2=10.0, thresholds=[0.5])
+        report = cross_validate(design, components=2, l2=10.0, thresholds=[0.5])  # linear
         assert report["candidates"] == 5 * n
     # The command line: an empty folder is an error; five scene files make a critic.
     data = tmp_path / "data"

@@ -21,10 +21,12 @@ Features of a candidate (:func:`candidate_features`):
   (length of the mean horizontal direction), and how close any comes to grazing the
   contact faces (min and mean ``|d·y|``) or the finger sides (min ``|d·x|``).
 
-The model (:class:`GraspCritic`): standardisation, PCA of the crops, logistic regression
-with an L2 penalty, fitted by Newton's method. Trained on the train split's objects
-with :mod:`heapgrasp.grasping.critic_data`; the weights are one ``.npz`` of arrays plus
-the command and measurements that made them.
+The model (:class:`GraspCritic`), after standardisation: either (``linear``) PCA of the
+crops and logistic regression with an L2 penalty, fitted by Newton's method, or
+(``cnn``) a small 3-D convolutional network on the crops and the scalars
+(:mod:`heapgrasp.grasping.critic_net`; trained with PyTorch, run in numpy). Trained on
+the train split's objects with :mod:`heapgrasp.grasping.critic_data`; the weights are
+one ``.npz`` of arrays plus the command and measurements that made them.
 """
 
 from __future__ import annotations
@@ -36,16 +38,20 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from heapgrasp.grasping.volumes import GraspCandidate, GridFrame
 
+if TYPE_CHECKING:
+    from heapgrasp.grasping.critic_net import ConvCritic
+
 __all__ = [
     "CROP_SHAPE",
     "DEFAULT_CRITIC",
+    "MODELS",
     "GraspCritic",
     "candidate_features",
     "crop_in_grasp_frame",
@@ -207,22 +213,35 @@ def fit_logistic(x: F64, y: npt.ArrayLike, l2: float = 1.0, iterations: int = 50
     return w
 
 
+MODELS = ("linear", "cnn")
+"""The critic's model kinds (module docstring)."""
+
+
 @dataclass
 class GraspCritic:
-    """Standardise → PCA of the crops → logistic regression (module docstring)."""
+    """Standardise → PCA of the crops → logistic regression, or standardise → the
+    network of :mod:`~heapgrasp.grasping.critic_net` (module docstring)."""
 
     mean: F64
     scale: F64
     components: F64
-    """``(k, crop features)`` principal axes of the standardised crops."""
+    """``(k, crop features)`` principal axes of the standardised crops (``k = 0`` with a
+    network)."""
     weights: F64
-    """``k + N_SCALARS + 1`` logistic weights, bias last."""
+    """``k + N_SCALARS + 1`` logistic weights, bias last (unused with a network)."""
     threshold: float = 0.7
     """Candidates below this probability are dropped (:meth:`rescore`): the critic's ε."""
     candidate_epsilon: float = 0.2
     """Threshold ε on the analytic planner's score for the candidates the critic sees
     (the data's, :class:`~heapgrasp.grasping.critic_data.CriticDataConfig`)."""
     metadata: dict[str, Any] = field(default_factory=dict)
+    net: ConvCritic | None = None
+    """The convolutional model; None for the linear one."""
+
+    @property
+    def model(self) -> str:
+        """``"linear"`` or ``"cnn"``."""
+        return "linear" if self.net is None else "cnn"
 
     def __post_init__(self) -> None:
         n = len(self.mean)
@@ -255,7 +274,10 @@ class GraspCritic:
         f = np.atleast_2d(np.asarray(features, dtype=np.float64))
         if f.shape[1] != len(self.mean):
             raise ValueError(f"features must have {len(self.mean)} columns, got {f.shape[1]}")
-        logit = self._design(f) @ self.weights[:-1] + self.weights[-1]
+        if self.net is not None:
+            logit = self.net.logits((f - self.mean) / self.scale)
+        else:
+            logit = self._design(f) @ self.weights[:-1] + self.weights[-1]
         return np.asarray(1.0 / (1.0 + np.exp(-np.clip(logit, -30, 30))))
 
     @classmethod
@@ -268,14 +290,31 @@ class GraspCritic:
         l2: float = 1.0,
         threshold: float = 0.7,
         candidate_epsilon: float = 0.2,
+        model: str = "linear",
+        epochs: int = 30,
+        weight_decay: float = 1e-2,
+        seed: int = 0,
     ) -> GraspCritic:
-        """Fits the model on rows of :func:`candidate_features` and 0/1 labels."""
+        """Fits the model on rows of :func:`candidate_features` and 0/1 labels:
+        ``linear`` uses ``components`` and ``l2``; ``cnn`` uses ``epochs``,
+        ``weight_decay`` and ``seed`` (:func:`~heapgrasp.grasping.critic_net.fit_conv`,
+        needs PyTorch)."""
+        if model not in MODELS:
+            raise ValueError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
         f = np.asarray(features, dtype=np.float64)
         mean = f.mean(axis=0)
         scale = f.std(axis=0)
         scale[scale < 1e-6] = 1.0
         z = (f - mean) / scale
         n_crop = f.shape[1] - N_SCALARS
+        if model == "cnn":
+            from heapgrasp.grasping.critic_net import fit_conv
+
+            net = fit_conv(z, labels, epochs=epochs, weight_decay=weight_decay, seed=seed)
+            empty = np.zeros((0, n_crop))
+            return cls(
+                mean, scale, empty, np.zeros(N_SCALARS + 1), threshold, candidate_epsilon, net=net
+            )
         _, _, vt = np.linalg.svd(z[:, :n_crop], full_matrices=False)
         comps = vt[: min(components, len(vt))]
         design = np.hstack([z[:, :n_crop] @ comps.T, z[:, n_crop:]])
@@ -334,12 +373,15 @@ class GraspCritic:
             command=command,
             created=_dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
             crop_shape=list(CROP_SHAPE),
+            model=self.model,
         )
         path.parent.mkdir(parents=True, exist_ok=True)
+        net = {} if self.net is None else {f"net_{k}": v for k, v in self.net.arrays().items()}
         np.savez_compressed(
             path,
             format=np.str_("heapgrasp-critic"),
-            version=np.int64(1),
+            version=np.int64(1 if self.net is None else 2),
+            **net,
             mean=self.mean,
             scale=self.scale,
             components=self.components.astype(np.float32),
@@ -358,8 +400,16 @@ class GraspCritic:
             raise FileNotFoundError(f"grasp critic file not found: {p}")
         try:
             with np.load(p, allow_pickle=False) as data:
-                if str(data["format"]) != "heapgrasp-critic" or int(data["version"]) != 1:
+                version = int(data["version"])
+                if str(data["format"]) != "heapgrasp-critic" or version not in (1, 2):
                     raise ValueError("not a heapgrasp critic (format/version)")
+                net = None
+                if version == 2:
+                    from heapgrasp.grasping.critic_net import ARRAYS, ConvCritic
+
+                    net = ConvCritic(
+                        *(np.asarray(data[f"net_{k}"], dtype=np.float64) for k in ARRAYS)
+                    )
                 return cls(
                     np.asarray(data["mean"], dtype=np.float64),
                     np.asarray(data["scale"], dtype=np.float64),
@@ -368,6 +418,7 @@ class GraspCritic:
                     float(data["threshold"]),
                     float(data["candidate_epsilon"]),
                     json.loads(str(data["metadata"])),
+                    net,
                 )
         except (KeyError, OSError, ValueError) as exc:
             raise ValueError(f"cannot read grasp critic {p}: {exc}") from exc

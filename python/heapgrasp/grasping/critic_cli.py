@@ -56,29 +56,34 @@ def _train(args: argparse.Namespace) -> int:
     scenes = load_dataset(paths)
     design = design_matrix(scenes, GridFrame((0.0, 0.0, 0.0), args.cube_size, args.resolution))
     print(f"{len(design)} candidates from {len(paths)} scenes; cross-validating ...", flush=True)
+    model = {
+        "model": args.model,
+        "components": args.components,
+        "l2": args.l2,
+        "epochs": args.epochs,
+        "weight_decay": args.weight_decay,
+        "seed": args.seed,
+    }
     report = cross_validate(
         design,
-        components=args.components,
-        l2=args.l2,
         thresholds=sorted({*args.report_thresholds, args.threshold}),
         epsilon=args.epsilon,
         folds=args.folds,
+        **model,  # type: ignore[arg-type]
     )
     critic = GraspCritic.fit(
         design.features,
         design.labels,
-        components=args.components,
-        l2=args.l2,
         threshold=args.threshold,
         candidate_epsilon=args.candidate_epsilon,
+        **model,  # type: ignore[arg-type]
     )
     command = "heapgrasp " + shlex.join(getattr(args, "argv", sys.argv[1:]))
     meta = {
         "data": str(data),
         "scenes": len(paths),
         "seeds": [int(s["seed"]) for s in scenes],
-        "components": args.components,
-        "l2": args.l2,
+        **model,
         "cross_validation": report,
     }
     out = Path(args.out)
@@ -137,14 +142,26 @@ def add_parser(
         "train",
         help="cross-validate and fit the critic on scene files",
         description=(
-            "Cross-validates by scene, fits PCA + logistic regression on all scenes and "
-            "writes the critic (.npz) and its report (.json)."
+            "Cross-validates by scene, fits the model (PCA + logistic regression, or the "
+            "3-D CNN with --model cnn, which needs PyTorch) on all scenes and writes the "
+            "critic (.npz) and its report (.json)."
         ),
     )
     t.add_argument("data", help="folder of scene files from 'heapgrasp critic data'")
     t.add_argument("--out", required=True, help="critic file to write (.npz)")
+    t.add_argument(
+        "--model",
+        choices=("linear", "cnn"),
+        default="linear",
+        help="linear: PCA + logistic regression (numpy); cnn: small 3-D CNN (PyTorch)",
+    )
     t.add_argument("--components", type=int_at_least(1), default=16, help="PCA components (16)")
-    t.add_argument("--l2", type=float_in(0.0), default=10.0, help="L2 penalty (10)")
+    t.add_argument("--l2", type=float_in(0.0), default=10.0, help="linear: L2 penalty (10)")
+    t.add_argument("--epochs", type=int_at_least(1), default=30, help="cnn: epochs (30)")
+    t.add_argument(
+        "--weight-decay", type=float_in(0.0), default=0.01, help="cnn: AdamW weight decay (0.01)"
+    )
+    t.add_argument("--seed", type=int, default=0, help="cnn: random seed (0)")
     t.add_argument(
         "--threshold",
         type=float_in(0.0, 1.0),

@@ -144,13 +144,14 @@ def phase_picks(design: Design, prob: F64, threshold: float, epsilon: float) -> 
 def cross_validate(
     design: Design,
     *,
-    components: int,
-    l2: float,
     thresholds: Sequence[float],
     epsilon: float = 0.4,
     folds: int = 5,
+    **model: Any,
 ) -> dict[str, Any]:
-    """Grouped ``folds``-fold cross-validation (module docstring)."""
+    """Grouped ``folds``-fold cross-validation (module docstring); ``model`` are the
+    keyword arguments of :meth:`GraspCritic.fit` (``model``, ``components``, ``l2``,
+    ``epochs``, ...)."""
     if folds < 2:
         raise ValueError(f"folds must be >= 2, got {folds}")
     prob = np.zeros(len(design.labels))
@@ -158,10 +159,8 @@ def cross_validate(
         test = design.scene % folds == f
         if test.all() or not test.any():
             raise ValueError(f"too few scenes ({design.scene.max() + 1}) for {folds} folds")
-        model = GraspCritic.fit(
-            design.features[~test], design.labels[~test], components=components, l2=l2
-        )
-        prob[test] = model.probability(design.features[test])
+        critic = GraspCritic.fit(design.features[~test], design.labels[~test], **model)
+        prob[test] = critic.probability(design.features[test])
     per_candidate = prob.reshape(-1, 2).mean(axis=1)
     y = design.labels[::2]
     report: dict[str, Any] = {
