@@ -18,7 +18,7 @@ from heapgrasp.grasping.critic import (
     flip_pose,
     view_features,
 )
-from heapgrasp.grasping.critic_train import auc, cross_validate, design_matrix
+from heapgrasp.grasping.critic_train import Design, auc, cross_validate, design_matrix, phase_picks
 from heapgrasp.grasping.volumes import GraspCandidate, GridFrame
 from heapgrasp.pipeline import build_pipeline, make_critic
 from heapgrasp.sim.objects import ObjectLibrary
@@ -196,6 +196,31 @@ def test_cnn_critic_runs_in_numpy_as_in_torch_and_round_trips(tmp_path: Path) ->
         ConvCritic(*(getattr(critic.net, n) if n != "fc2_w" else np.zeros((2, 64)) for n in ARRAYS))
     with pytest.raises(ValueError, match="model"):
         GraspCritic.fit(x, y, model="forest")
+
+
+def test_phase_picks_on_hand_made_phases() -> None:
+    # Two phases of one scene, three candidates each (rows come in flip pairs).
+    labels = np.repeat([1.0, 0.0, 0.0, 0.0, 0.0, 1.0], 2)
+    score = np.repeat([0.5, 0.9, 0.1, 0.3, 0.45, 0.2], 2)
+    design = Design(
+        np.zeros((12, 1)),
+        labels,
+        np.zeros(12, dtype=np.int64),
+        np.repeat([0, 0, 0, 1, 1, 1], 2),
+        score,
+        np.array(["heapgrasp_top"] * 12),
+    )
+    prob = np.array([0.9, 0.2, 0.1, 0.5, 0.4, 0.8])
+    out = phase_picks(design, prob, threshold=0.6, epsilon=0.4)["heapgrasp_top_start"]
+    assert out["phases"] == 2
+    assert out["planner_pick_success"] == 0.0  # 0.9 then 0.45: both failed
+    assert out["critic_pick_success"] == 1.0  # 0.9 then 0.8: both held
+    assert out["planner_kept_success"] == pytest.approx(0.25)  # (1/2 + 0/1) / 2
+    assert out["planner_no_candidate"] == 0 and out["critic_no_candidate"] == 0
+    assert out["any_candidate_success"] == 1.0
+    strict = phase_picks(design, prob, threshold=0.85, epsilon=0.95)["heapgrasp_top_start"]
+    assert strict["planner_no_candidate"] == 2 and strict["critic_no_candidate"] == 1
+    assert strict["planner_pick_success"] is None
 
 
 def candidates_on_the_box() -> list[GraspCandidate]:

@@ -376,7 +376,9 @@ class GraspCritic:
             model=self.model,
         )
         path.parent.mkdir(parents=True, exist_ok=True)
-        net = {} if self.net is None else {f"net_{k}": v for k, v in self.net.arrays().items()}
+        net: dict[str, Any] = (
+            {} if self.net is None else {f"net_{k}": v for k, v in self.net.arrays().items()}
+        )
         np.savez_compressed(
             path,
             format=np.str_("heapgrasp-critic"),

@@ -69,14 +69,14 @@ def _train(args: argparse.Namespace) -> int:
         thresholds=sorted({*args.report_thresholds, args.threshold}),
         epsilon=args.epsilon,
         folds=args.folds,
-        **model,  # type: ignore[arg-type]
+        **model,
     )
     critic = GraspCritic.fit(
         design.features,
         design.labels,
         threshold=args.threshold,
         candidate_epsilon=args.candidate_epsilon,
-        **model,  # type: ignore[arg-type]
+        **model,
     )
     command = "heapgrasp " + shlex.join(getattr(args, "argv", sys.argv[1:]))
     meta = {

@@ -39,13 +39,14 @@ def _conv3d(x: F64, w: F64, b: F64) -> F64:
     """3³ cross-correlation with padding 1 (as ``torch.nn.Conv3d(padding=1)``)."""
     xp = np.pad(x, ((0, 0), (0, 0), (1, 1), (1, 1), (1, 1)))
     win = sliding_window_view(xp, (3, 3, 3), axis=(2, 3, 4))
-    return np.einsum("ncdhwijk,ocijk->nodhw", win, w, optimize=True) + b[None, :, None, None, None]
+    out = np.einsum("ncdhwijk,ocijk->nodhw", win, w, optimize=True)
+    return np.asarray(out + b[None, :, None, None, None], dtype=np.float64)
 
 
 def _max_pool2(x: F64) -> F64:
     n, c, d, h, w = x.shape
     x = x[:, :, : d // 2 * 2, : h // 2 * 2, : w // 2 * 2]
-    return x.reshape(n, c, d // 2, 2, h // 2, 2, w // 2, 2).max(axis=(3, 5, 7))
+    return np.asarray(x.reshape(n, c, d // 2, 2, h // 2, 2, w // 2, 2).max(axis=(3, 5, 7)))
 
 
 def _adaptive_avg2(x: F64) -> F64:
@@ -127,7 +128,8 @@ def _torch_module(c1: int, c2: int, hidden: int):  # type: ignore[no-untyped-def
             h = torch.max_pool3d(torch.relu(self.conv1(crops)), 2)
             h = torch.nn.functional.adaptive_avg_pool3d(torch.relu(self.conv2(h)), 2)
             h = torch.cat([h.flatten(1), z[:, _N_CROP:]], 1)
-            return self.fc2(self.drop(torch.relu(self.fc1(h))))[:, 0]
+            logits: torch.Tensor = self.fc2(self.drop(torch.relu(self.fc1(h))))[:, 0]
+            return logits
 
     return Net()
 
@@ -172,7 +174,7 @@ def fit_conv(
             batch = perm[i : i + 128]
             loss = torch.nn.functional.binary_cross_entropy_with_logits(net(xt[batch]), yt[batch])
             opt.zero_grad()
-            loss.backward()
+            loss.backward()  # type: ignore[no-untyped-call]
             opt.step()
     net.eval()
     params = {

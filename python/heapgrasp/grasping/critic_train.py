@@ -100,7 +100,9 @@ def phase_picks(design: Design, prob: F64, threshold: float, epsilon: float) -> 
     candidate), per start: phases; the success of the planner's pick (its best
     candidate at ``epsilon``) and of the critic's most probable candidate at
     ``threshold``; the mean success of the candidates each keeps (what eq. 16 picks from,
-    a proxy for its pick); phases where each keeps none (the phase ends the scene)."""
+    a proxy for its pick); phases where each keeps none (the phase ends the scene); and
+    the share of phases in which any tried candidate held (what a perfect critic's pick
+    would reach)."""
     y = design.labels[::2]
     score = design.score[::2]
     scene = design.scene[::2]
@@ -119,6 +121,7 @@ def phase_picks(design: Design, prob: F64, threshold: float, epsilon: float) -> 
                 y[kept].mean() if kept.size else np.nan,
                 float(base.size == 0),
                 float(kept.size == 0),
+                float(y[idx].max()),
             ]
         )
 
@@ -137,6 +140,7 @@ def phase_picks(design: Design, prob: F64, threshold: float, epsilon: float) -> 
             "critic_kept_success": mean(a[:, 3]),
             "planner_no_candidate": int(a[:, 4].sum()),
             "critic_no_candidate": int(a[:, 5].sum()),
+            "any_candidate_success": mean(a[:, 6]),
         }
     return out
 
