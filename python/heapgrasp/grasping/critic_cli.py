@@ -35,6 +35,7 @@ def _data(args: argparse.Namespace) -> int:
         max_candidates=args.max_candidates,
         max_phases=args.max_phases,
         method=args.method,
+        critic=args.critic,
     )
     paths = generate(config, Path(args.out), workers=args.workers)
     print(f"{len(paths)} scene files in {args.out}")
@@ -133,6 +134,14 @@ def add_parser(
         choices=("heapgrasp", "no-vp"),
         default="heapgrasp",
         help="whose hulls: HEAPGrasp's oracle views or no-vp's circle (heapgrasp)",
+    )
+    d.add_argument(
+        "--critic",
+        default="none",
+        help=(
+            "critic steering the phases' views: none, default (the shipped one) or a file; "
+            "the tried candidates are the planner's own either way (none)"
+        ),
     )
     d.add_argument("--workers", type=int_at_least(1), default=1, help="processes (default 1)")
     d.add_argument("--out", required=True, help="folder of the scene files")

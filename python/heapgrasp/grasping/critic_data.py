@@ -54,6 +54,11 @@ class CriticDataConfig:
     objects: int = 5
     method: str = "heapgrasp"
     """``heapgrasp`` (oracle views) or ``no-vp`` (the circle): whose hulls to sample."""
+    critic: str = "none"
+    """The critic that steers the phases' views (``RunConfig.grasp_critic``: ``none``,
+    ``default`` or a file): with a critic, HEAPGrasp's targets of eq. 16, and so its
+    views, are the ones it makes when deployed with it. The labelled candidates are the
+    planner's own either way."""
 
     def __post_init__(self) -> None:
         if self.method not in ("heapgrasp", "no-vp"):
@@ -68,6 +73,10 @@ class CriticDataConfig:
             raise ValueError(f"max_phases must be >= 1, got {self.max_phases}")
         if self.objects < 1:
             raise ValueError(f"objects must be >= 1, got {self.objects}")
+        if self.critic == "auto":
+            raise ValueError("critic must be 'none', 'default' or a file path, got 'auto'")
+        if self.critic not in ("none", "default") and not Path(self.critic).is_file():
+            raise FileNotFoundError(f"grasp critic file not found: {self.critic}")
 
     def run_config(self, index: int) -> RunConfig:
         """The pipeline's configuration for scene ``index``."""
@@ -77,7 +86,7 @@ class CriticDataConfig:
             split="train",
             objects=self.objects,
             seed=self.seed,
-            grasp_critic="none",  # the data are the planner's own candidates
+            grasp_critic=self.critic,
             **start,  # type: ignore[arg-type]
         )
 
@@ -160,6 +169,7 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
         "seed": np.int64(seed),
         "start": np.str_("top" if index % 2 == 0 else "default"),
         "method": np.str_(config.method),
+        "critic": np.str_(config.critic),
         "grasp_input": np.stack(inputs) if inputs else np.zeros((0, 0, 0, 0), bool),
         "high": np.stack(highs) if highs else np.zeros((0, 0, 0, 0), bool),
         "camera_positions": np.concatenate(cameras) if cameras else np.zeros((0, 3)),
