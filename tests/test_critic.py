@@ -298,6 +298,19 @@ def test_loop_with_the_shipped_critic_grasps_a_lone_box(tmp_path: Path) -> None:
     assert reason == StopReason.CLEARED, [p.to_dict()["outcome"] for p in phases]
 
 
+def test_data_phases_can_be_steered_by_a_critic(tmp_path: Path) -> None:
+    from heapgrasp.grasping.critic_data import CriticDataConfig
+
+    assert CriticDataConfig().run_config(0).critic is None  # the planner alone by default
+    steered = CriticDataConfig(critic="default")
+    assert steered.run_config(0).critic == "default"
+    assert steered.run_config(1).initial_theta != steered.run_config(0).initial_theta
+    with pytest.raises(FileNotFoundError, match=r"nope\.npz"):
+        CriticDataConfig(critic=str(tmp_path / "nope.npz"))
+    with pytest.raises(ValueError, match="auto"):
+        CriticDataConfig(critic="auto")
+
+
 def test_data_of_one_scene_is_consistent_and_trains(tmp_path: Path) -> None:
     from heapgrasp.cli import main
     from heapgrasp.grasping.critic_data import CriticDataConfig, scene_data
@@ -309,6 +322,7 @@ def test_data_of_one_scene_is_consistent_and_trains(tmp_path: Path) -> None:
     assert s["grasp_input"].shape == (1, 40, 40, 40)
     assert s["camera_counts"].sum() == len(s["camera_positions"]) > 10
     assert set(s["outcome"]) <= {"success", "empty", "collision", "unreachable"}
+    assert str(s["critic"]) == "none"
     # Five copies of the scene make a design for 5-fold cross-validation.
     design = design_matrix([s] * 5, FRAME)
     assert len(design) == 5 * n and design.features.shape[0] == 10 * n

@@ -48,12 +48,15 @@ def _train(args: argparse.Namespace) -> int:
     from heapgrasp.grasping.critic_train import cross_validate, design_matrix
     from heapgrasp.grasping.volumes import GridFrame
 
-    data = Path(args.data)
-    paths = sorted(data.glob("scene_*.npz"))
-    if not paths:
-        raise ValueError(
-            f"no scene_*.npz files in {data} (write them with 'heapgrasp critic data')"
-        )
+    folders = [Path(d) for d in args.data]
+    paths = []
+    for data in folders:
+        found = sorted(data.glob("scene_*.npz"))
+        if not found:
+            raise ValueError(
+                f"no scene_*.npz files in {data} (write them with 'heapgrasp critic data')"
+            )
+        paths.extend(found)
     scenes = load_dataset(paths)
     design = design_matrix(scenes, GridFrame((0.0, 0.0, 0.0), args.cube_size, args.resolution))
     print(f"{len(design)} candidates from {len(paths)} scenes; cross-validating ...", flush=True)
@@ -81,7 +84,7 @@ def _train(args: argparse.Namespace) -> int:
     )
     command = "heapgrasp " + shlex.join(getattr(args, "argv", sys.argv[1:]))
     meta = {
-        "data": str(data),
+        "data": " ".join(str(d) for d in folders),
         "scenes": len(paths),
         "seeds": [int(s["seed"]) for s in scenes],
         **model,
@@ -156,7 +159,7 @@ def add_parser(
             "critic (.npz) and its report (.json)."
         ),
     )
-    t.add_argument("data", help="folder of scene files from 'heapgrasp critic data'")
+    t.add_argument("data", nargs="+", help="folders of scene files from 'heapgrasp critic data'")
     t.add_argument("--out", required=True, help="critic file to write (.npz)")
     t.add_argument(
         "--model",
