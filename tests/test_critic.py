@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -311,7 +312,9 @@ def test_data_phases_can_be_steered_by_a_critic(tmp_path: Path) -> None:
         CriticDataConfig(critic="auto")
 
 
-def test_data_of_one_scene_is_consistent_and_trains(tmp_path: Path) -> None:
+def test_data_of_one_scene_is_consistent_and_trains(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from heapgrasp.cli import main
     from heapgrasp.grasping.critic_data import CriticDataConfig, scene_data
 
@@ -342,6 +345,16 @@ def test_data_of_one_scene_is_consistent_and_trains(tmp_path: Path) -> None:
     assert critic.metadata["scenes"] == 5
     assert critic.metadata["command"].startswith("heapgrasp critic train")
     assert (tmp_path / "c.json").is_file()
+    # critic eval scores the files without refitting: the trained critic separates them.
+    capsys.readouterr()
+    assert main(["critic", "eval", str(out), str(data), "--report-thresholds", "0.5"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["candidates"] == 5 * n and report["scenes"] == 5
+    assert report["success_fraction"] == pytest.approx(0.4)  # files 1 and 3 held
+    # The copies have the same features, so no critic can tell them apart: AUC 0.5.
+    assert report["auc_critic"] == pytest.approx(0.5)
+    assert set(report["picks"]) == {"0.5", f"{critic.threshold:g}"}
+    assert main(["critic", "eval", str(out), str(tmp_path / "empty")]) == 1
 
 
 @pytest.mark.parametrize("at_waypoints", [True, False])

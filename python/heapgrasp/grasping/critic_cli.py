@@ -42,14 +42,8 @@ def _data(args: argparse.Namespace) -> int:
     return 0
 
 
-def _train(args: argparse.Namespace) -> int:
-    from heapgrasp.grasping.critic import GraspCritic
-    from heapgrasp.grasping.critic_data import load_dataset
-    from heapgrasp.grasping.critic_train import cross_validate, design_matrix
-    from heapgrasp.grasping.volumes import GridFrame
-
-    folders = [Path(d) for d in args.data]
-    paths = []
+def _scene_files(folders: list[Path]) -> list[Path]:
+    paths: list[Path] = []
     for data in folders:
         found = sorted(data.glob("scene_*.npz"))
         if not found:
@@ -57,6 +51,46 @@ def _train(args: argparse.Namespace) -> int:
                 f"no scene_*.npz files in {data} (write them with 'heapgrasp critic data')"
             )
         paths.extend(found)
+    return paths
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from heapgrasp.grasping.critic import GraspCritic
+    from heapgrasp.grasping.critic_data import load_dataset
+    from heapgrasp.grasping.critic_train import auc, design_matrix, phase_picks
+    from heapgrasp.grasping.volumes import GridFrame
+
+    critic = GraspCritic.load(args.critic)
+    paths = _scene_files([Path(d) for d in args.data])
+    design = design_matrix(
+        load_dataset(paths), GridFrame((0.0, 0.0, 0.0), args.cube_size, args.resolution)
+    )
+    prob = critic.probability(design.features).reshape(-1, 2).mean(axis=1)
+    y = design.labels[::2]
+    report = {
+        "critic": str(args.critic),
+        "scenes": len(paths),
+        "candidates": len(design),
+        "success_fraction": float(y.mean()),
+        "auc_critic": auc(prob, y),
+        "auc_planner_score": auc(design.score[::2], y),
+        "picks": {
+            f"{t:g}": phase_picks(design, prob, t, args.epsilon)
+            for t in sorted({*args.report_thresholds, critic.threshold})
+        },
+    }
+    print(json.dumps(report, indent=2))
+    return 0
+
+
+def _train(args: argparse.Namespace) -> int:
+    from heapgrasp.grasping.critic import GraspCritic
+    from heapgrasp.grasping.critic_data import load_dataset
+    from heapgrasp.grasping.critic_train import cross_validate, design_matrix
+    from heapgrasp.grasping.volumes import GridFrame
+
+    folders = [Path(d) for d in args.data]
+    paths = _scene_files(folders)
     scenes = load_dataset(paths)
     design = design_matrix(scenes, GridFrame((0.0, 0.0, 0.0), args.cube_size, args.resolution))
     print(f"{len(design)} candidates from {len(paths)} scenes; cross-validating ...", flush=True)
@@ -101,10 +135,10 @@ def _train(args: argparse.Namespace) -> int:
 def add_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
 ) -> argparse.ArgumentParser:
-    """Adds ``critic data`` and ``critic train``."""
+    """Adds ``critic data``, ``critic train`` and ``critic eval``."""
     p = subparsers.add_parser(
         "critic",
-        help="the learned grasp critic: generate its data, train it",
+        help="the learned grasp critic: generate its data, train it, evaluate it",
         description=__doc__.split("\n\n")[0] if __doc__ else None,
     )
     sub = p.add_subparsers(dest="critic_command", metavar="STEP", required=True)
@@ -197,4 +231,25 @@ def add_parser(
     t.add_argument("--cube-size", type=float_in(0.0, open_low=True), default=0.30)
     t.add_argument("--resolution", type=int_at_least(8), default=40)
     t.set_defaults(func=_train)
+    e = sub.add_parser(
+        "eval",
+        help="evaluate a critic file on scene files it was not trained on",
+        description=(
+            "Scores every tried candidate of the scene files with the critic and prints, as "
+            "JSON, the AUC of the critic and of the planner's score and, per start, what "
+            "each would pick (the report of 'critic train', without refitting)."
+        ),
+    )
+    e.add_argument("critic", help="critic file (.npz), e.g. python/heapgrasp/weights/critic.npz")
+    e.add_argument("data", nargs="+", help="folders of scene files from 'heapgrasp critic data'")
+    e.add_argument(
+        "--report-thresholds",
+        type=lambda s: [float_in(0.0, 1.0)(v) for v in s.split(",")],
+        default=[0.5, 0.6, 0.7, 0.8],
+        help="thresholds to evaluate (comma-separated; the critic's own is added)",
+    )
+    e.add_argument("--epsilon", type=float_in(0.0, 1.0), default=0.4, help="deployed ε (0.4)")
+    e.add_argument("--cube-size", type=float_in(0.0, open_low=True), default=0.30)
+    e.add_argument("--resolution", type=int_at_least(8), default=40)
+    e.set_defaults(func=_evaluate)
     return p
