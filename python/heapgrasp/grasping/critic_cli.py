@@ -1,15 +1,17 @@
-"""``heapgrasp critic data|train``: the grasp critic's data and weights.
+"""``heapgrasp critic data|train|eval``: the grasp critic's data, weights and evaluation.
 
 ::
 
     heapgrasp critic data --scenes 240 --workers 2 --out runs/critic-data
-    heapgrasp critic train runs/critic-data --out python/heapgrasp/weights/critic.npz
+    heapgrasp critic train runs/critic-data --model cnn --out python/heapgrasp/weights/critic.npz
+    heapgrasp critic eval python/heapgrasp/weights/critic.npz runs/other-data
 
 ``data`` runs HEAPGrasp's phases on train-split scenes and tries every candidate in the
 simulator (:mod:`heapgrasp.grasping.critic_data`); an interrupted run continues where it
 stopped. ``train`` cross-validates by scene (:mod:`heapgrasp.grasping.critic_train`),
 fits on all scenes, and writes the critic with its command and the cross-validated
-measurements, plus ``FILE.json`` with the same report.
+measurements, plus ``FILE.json`` with the same report. ``eval`` scores a critic file on
+scene files without refitting and prints the same report.
 """
 
 from __future__ import annotations
