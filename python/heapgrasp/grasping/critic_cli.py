@@ -59,7 +59,7 @@ def _scene_files(folders: list[Path]) -> list[Path]:
 def _evaluate(args: argparse.Namespace) -> int:
     from heapgrasp.grasping.critic import GraspCritic
     from heapgrasp.grasping.critic_data import load_dataset
-    from heapgrasp.grasping.critic_train import auc, design_matrix, phase_picks
+    from heapgrasp.grasping.critic_train import design_matrix, evaluation_report
     from heapgrasp.grasping.volumes import GridFrame
 
     critic = GraspCritic.load(args.critic)
@@ -67,19 +67,11 @@ def _evaluate(args: argparse.Namespace) -> int:
     design = design_matrix(
         load_dataset(paths), GridFrame((0.0, 0.0, 0.0), args.cube_size, args.resolution)
     )
-    prob = critic.probability(design.features).reshape(-1, 2).mean(axis=1)
-    y = design.labels[::2]
+    thresholds = sorted({*args.report_thresholds, critic.threshold})
     report = {
         "critic": str(args.critic),
         "scenes": len(paths),
-        "candidates": len(design),
-        "success_fraction": float(y.mean()),
-        "auc_critic": auc(prob, y),
-        "auc_planner_score": auc(design.score[::2], y),
-        "picks": {
-            f"{t:g}": phase_picks(design, prob, t, args.epsilon)
-            for t in sorted({*args.report_thresholds, critic.threshold})
-        },
+        **evaluation_report(design, critic.probability(design.features), thresholds, args.epsilon),
     }
     print(json.dumps(report, indent=2))
     return 0
@@ -132,6 +124,19 @@ def _train(args: argparse.Namespace) -> int:
     print(json.dumps(report, indent=2))
     print(f"wrote {out} and {out.with_suffix('.json')}")
     return 0
+
+
+def _report_arguments(parser: argparse.ArgumentParser) -> None:
+    """The report's options, shared by ``train`` and ``eval``."""
+    parser.add_argument(
+        "--report-thresholds",
+        type=lambda s: [float_in(0.0, 1.0)(v) for v in s.split(",")],
+        default=[0.5, 0.6, 0.7, 0.8],
+        help="thresholds the report evaluates (comma-separated; the critic's own is added)",
+    )
+    parser.add_argument("--epsilon", type=float_in(0.0, 1.0), default=0.4, help="deployed ε (0.4)")
+    parser.add_argument("--cube-size", type=float_in(0.0, open_low=True), default=0.30)
+    parser.add_argument("--resolution", type=int_at_least(8), default=40)
 
 
 def add_parser(
@@ -216,13 +221,7 @@ def add_parser(
         default=0.7,
         help="probability below which candidates are dropped: the critic's ε (0.7)",
     )
-    t.add_argument(
-        "--report-thresholds",
-        type=lambda s: [float_in(0.0, 1.0)(v) for v in s.split(",")],
-        default=[0.5, 0.6, 0.7, 0.8],
-        help="thresholds the report evaluates (comma-separated)",
-    )
-    t.add_argument("--epsilon", type=float_in(0.0, 1.0), default=0.4, help="deployed ε (0.4)")
+    _report_arguments(t)
     t.add_argument(
         "--candidate-epsilon",
         type=float_in(0.0, 1.0),
@@ -230,8 +229,6 @@ def add_parser(
         help="ε of the planner's candidates the critic sees: the data's --epsilon (0.2)",
     )
     t.add_argument("--folds", type=int_at_least(2), default=5, help="folds (5)")
-    t.add_argument("--cube-size", type=float_in(0.0, open_low=True), default=0.30)
-    t.add_argument("--resolution", type=int_at_least(8), default=40)
     t.set_defaults(func=_train)
     e = sub.add_parser(
         "eval",
@@ -244,14 +241,6 @@ def add_parser(
     )
     e.add_argument("critic", help="critic file (.npz), e.g. python/heapgrasp/weights/critic.npz")
     e.add_argument("data", nargs="+", help="folders of scene files from 'heapgrasp critic data'")
-    e.add_argument(
-        "--report-thresholds",
-        type=lambda s: [float_in(0.0, 1.0)(v) for v in s.split(",")],
-        default=[0.5, 0.6, 0.7, 0.8],
-        help="thresholds to evaluate (comma-separated; the critic's own is added)",
-    )
-    e.add_argument("--epsilon", type=float_in(0.0, 1.0), default=0.4, help="deployed ε (0.4)")
-    e.add_argument("--cube-size", type=float_in(0.0, open_low=True), default=0.30)
-    e.add_argument("--resolution", type=int_at_least(8), default=40)
+    _report_arguments(e)
     e.set_defaults(func=_evaluate)
     return p

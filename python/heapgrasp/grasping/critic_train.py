@@ -23,7 +23,14 @@ import numpy.typing as npt
 from heapgrasp.grasping.critic import GraspCritic, candidate_features, flip_pose
 from heapgrasp.grasping.volumes import GridFrame
 
-__all__ = ["Design", "auc", "cross_validate", "design_matrix", "phase_picks"]
+__all__ = [
+    "Design",
+    "auc",
+    "cross_validate",
+    "design_matrix",
+    "evaluation_report",
+    "phase_picks",
+]
 
 F64 = npt.NDArray[np.float64]
 
@@ -165,15 +172,22 @@ def cross_validate(
             raise ValueError(f"too few scenes ({design.scene.max() + 1}) for {folds} folds")
         critic = GraspCritic.fit(design.features[~test], design.labels[~test], **model)
         prob[test] = critic.probability(design.features[test])
-    per_candidate = prob.reshape(-1, 2).mean(axis=1)
+    return evaluation_report(design, prob, thresholds, epsilon)
+
+
+def evaluation_report(
+    design: Design, prob: npt.ArrayLike, thresholds: Sequence[float], epsilon: float
+) -> dict[str, Any]:
+    """The critic's report on ``design`` from its probabilities ``prob`` (one per feature
+    row; the two rows of a candidate are averaged): candidates, their success fraction,
+    the AUC of the critic and of the planner's score, and :func:`phase_picks` at each
+    of ``thresholds``."""
+    per_candidate = np.asarray(prob, dtype=np.float64).reshape(-1, 2).mean(axis=1)
     y = design.labels[::2]
-    report: dict[str, Any] = {
+    return {
         "candidates": len(design),
         "success_fraction": float(y.mean()),
         "auc_critic": auc(per_candidate, y),
         "auc_planner_score": auc(design.score[::2], y),
-        "picks": {},
+        "picks": {f"{t:g}": phase_picks(design, per_candidate, t, epsilon) for t in thresholds},
     }
-    for t in thresholds:
-        report["picks"][f"{t:g}"] = phase_picks(design, per_candidate, t, epsilon)
-    return report
