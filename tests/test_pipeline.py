@@ -136,6 +136,63 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
     assert views.targets[0] is None
     assert [t[0] for t in views.targets[1:]] == pytest.approx([0.25, 0.24])
     assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.24)
+    assert result.extra["best_grasp"]["position"][0] == pytest.approx(0.07)
+
+
+def test_final_grasp_best_takes_the_highest_score_on_the_last_grid(tmp_path: Path) -> None:
+    # Same script as above: eq. 16 would keep 0.24 (closest to the last target), the
+    # "best" rule takes 0.07 (score 0.99); the views are planned the same way.
+    model = box_model(tmp_path, BOX)
+    script = [
+        [_candidate(0.05, 0.9)],
+        [_candidate(0.06, 0.5), _candidate(0.25, 0.95)],
+        [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],
+        [_candidate(0.24, 0.6), _candidate(0.07, 0.99)],
+    ]
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        views = _ScriptedViews()
+        pipeline = build_pipeline(RunConfig(final_grasp="best"), world, view_scorer=views)
+        calls = iter(script)
+        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
+        result = pipeline.plan()
+    assert [t[0] for t in views.targets[1:]] == pytest.approx([0.25, 0.24])
+    assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.07)
+    assert result.grasp is not None
+    assert result.grasp.pose[0, 3] == pytest.approx(0.07)
+
+
+@pytest.mark.parametrize(("confirm_below", "extra"), [(0.0, 0), (0.8, 1), (0.95, 2)])
+def test_an_unconfident_final_grasp_takes_more_view_waypoints(
+    tmp_path: Path, confirm_below: float, extra: int
+) -> None:
+    # Final grid: 0.24 at 0.6. Below confirm_below the camera takes another waypoint
+    # toward it (the target steers the view scores) and plans again: 0.23 at 0.9, then
+    # 0.22 at 0.99; at most confirm_waypoints = 2 extra waypoints.
+    model = box_model(tmp_path, BOX)
+    script = [
+        [_candidate(0.05, 0.9)],
+        [_candidate(0.25, 0.95)],
+        [_candidate(0.24, 0.9)],
+        [_candidate(0.24, 0.6)],  # final grid
+        [_candidate(0.23, 0.9)],  # after the first extra waypoint
+        [_candidate(0.22, 0.99)],  # after the second
+    ]
+    config = RunConfig(confirm_below=confirm_below, confirm_waypoints=2)
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        views = _ScriptedViews()
+        pipeline = build_pipeline(config, world, view_scorer=views)
+        calls = iter(script)
+        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
+        result = pipeline.plan()
+    assert result.extra["confirmation_waypoints"] == extra
+    assert len(result.extra["waypoints"]) == 3 + extra
+    chosen = [0.24, 0.23, 0.22][extra]
+    assert result.extra["target_grasp"]["position"][0] == pytest.approx(chosen)
+    # Each extra waypoint is planned toward the grasp it is to confirm.
+    assert [t[0] for t in views.targets[3:]] == pytest.approx([0.24, 0.23][:extra])
+    assert [w["gamma2"] for w in result.extra["waypoints"][3:]] == [0.35] * extra
 
 
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:

@@ -129,6 +129,22 @@ class RunConfig:
     critic_threshold: float | None = None
     """Probability below which the critic drops a candidate (its ε); None = the one
     stored in the critic file."""
+    final_grasp: str = "target"
+    """Which of the final grid's candidates HEAPGrasp executes: ``target`` (eq. 16 once
+    more: the candidate closest to the last waypoint's target grasp, the one its views
+    were planned for) or ``best`` (the highest score, the baselines' rule; with the
+    critic, the highest probability of success). The fixed-view methods always take the
+    best."""
+    confirm_below: float = 0.0
+    """HEAPGrasp only: when the grasp chosen on the final grid scores below this (with
+    the critic: its probability of success), or there is none, the camera takes another
+    view waypoint toward it (eq. 18-19 with ``confirm_gamma2``) and grasp planning runs
+    again, at most ``confirm_waypoints`` times. 0 never does (the paper: exactly L
+    waypoints)."""
+    confirm_waypoints: int = 1
+    """At most this many extra view waypoints per phase (``confirm_below``)."""
+    confirm_gamma2: float = 0.35
+    """γ2 of eq. 18 for the extra waypoints (``confirm_below``)."""
     failed_grasp_radius: float = 0.02
     """After a failed grasp, candidates within this distance of it (m) are not tried
     again until a grasp succeeds (the scene has then changed). The simulation is
@@ -211,6 +227,7 @@ class RunConfig:
         choice("object_set", OBJECT_SETS)
         choice("camera", ("continuous", "still"))
         choice("mount", MOUNTS)
+        choice("final_grasp", ("target", "best"))
         if not isinstance(self.grasp_critic, str) or not self.grasp_critic:
             raise ConfigError(
                 "grasp_critic: must be 'auto', 'none', 'default' or a file path; "
@@ -247,8 +264,9 @@ class RunConfig:
         between("initial_theta", 0.0, math.pi / 2)
         between("circle_theta", 0.0, math.pi / 2)
         between("hemisphere_theta", 0.0, math.pi / 2)
-        for name in ("gamma1", "gamma2", "gamma2_first"):
+        for name in ("gamma1", "gamma2", "gamma2_first", "confirm_gamma2"):
             between(name, 0.0, 100.0)
+        between("confirm_below", 0.0, 1.0)
         if self.sigma is not None:
             between("sigma", 0.0, 100.0)
         between("initial_phi", -4 * math.pi, 4 * math.pi)
@@ -266,6 +284,7 @@ class RunConfig:
         at_least("objects", 1)
         at_least("scenes", 1)
         at_least("silhouette_views", 0)
+        at_least("confirm_waypoints", 0)
         at_least("seed", 0)
         at_least("resolution", 8)
         if self.resolution > 512:

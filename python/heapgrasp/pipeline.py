@@ -11,8 +11,12 @@ grasp (footnote 3 of the paper). :class:`Pipeline.plan` runs it:
    continuously along the interpolated, ruckig-timed path (eq. 8);
    for the fixed-view methods (``no-vp``, ``vgn``, ``hemisphere6``) visit the fixed
    waypoints the same way;
-3. plan grasps on the final grid: ``heapgrasp`` keeps the target of eq. 16, the
-   baselines take the top-scoring grasp.
+3. plan grasps on the final grid: ``heapgrasp`` keeps the target of eq. 16
+   (``final_grasp = "best"`` takes the top-scoring one instead), the baselines take the
+   top-scoring grasp. With ``confirm_below`` > 0 (not in the paper), a HEAPGrasp grasp
+   scoring below it, or none at all, sends the camera to one more view waypoint toward
+   it (eq. 18-19, ``confirm_gamma2``), and the final grid is planned again, at most
+   ``confirm_waypoints`` times.
 
 Every method forgets candidates within ``failed_grasp_radius`` of a grasp that failed
 since the last success (:meth:`Pipeline.record_outcome`): the simulation is
@@ -88,6 +92,17 @@ def _candidate_record(c: GraspCandidate | None) -> dict[str, Any] | None:
         "width": c.width,
         "score": c.score,
     }
+
+
+@dataclass
+class _PhaseLog:
+    """What one phase has done so far: where the camera is, where it has been."""
+
+    current: F64
+    positions: list[F64]
+    waypoints: list[dict[str, Any]] = field(default_factory=list)
+    compute: float = 0.0
+    motion: float = 0.0
 
 
 @dataclass
@@ -249,6 +264,81 @@ class Pipeline:
         return best
 
     # ------------------------------------------------------------------ one phase
+    def _view_step(
+        self,
+        phase: _PhaseLog,
+        cands: list[GraspCandidate],
+        target: GraspCandidate | None,
+        gamma2: float,
+        t0: float,
+        t1: float,
+        *,
+        trusted: bool,
+    ) -> None:
+        """Eq. 18-19 from the current pose toward ``target``, then the move there with
+        continuous capture; ``t0``/``t1``: when grasp planning began and ended.
+        ``trusted``: the target may steer the view scores (the oracle's target column)."""
+        cfg = self.config
+        assert self.view_scorer is not None
+        assert isinstance(self.perception, SilhouettePerception)
+        ctx = ViewContext(
+            self.perception.grid,
+            phase.current,
+            self.candidates,
+            self.sphere,
+            self.camera,
+            cfg.lam,
+            self.world.object_scene,
+            target=None if target is None or not trusted else target.pose,
+        )
+        scores = self.view_scorer.scores(ctx)
+        t2 = time.perf_counter()
+        u, v = select_next_waypoint(
+            scores,
+            self.candidates,
+            phase.current,
+            None if target is None else target.pose,
+            gamma2,
+            cfg.gamma1,
+        )
+        t3 = time.perf_counter()
+        phase.compute += t3 - t0
+        goal = self.candidates[u, v]
+        moved = self._move(phase.current, goal)
+        if moved is None:
+            return
+        cap, duration, carve = moved
+        phase.compute += carve
+        phase.motion += duration
+        phase.positions.extend(cap.positions[1:])
+        phase.current = cap.poses[-1]
+        phase.waypoints.append(
+            {
+                "index": [u, v],
+                "position": goal[:3, 3].tolist(),
+                "view_score": float(scores[u, v]),
+                "view_score_max": float(scores.max()),
+                "gamma2": gamma2,
+                "target": _candidate_record(target),
+                "grasp_candidates": len(cands),
+                "frames": len(cap),
+                "duration_s": duration,
+                "grasp_planning_s": t1 - t0,
+                "view_planning_s": t2 - t1,
+                "latency_s": t3 - t0,
+            }
+        )
+
+    def _final_choice(
+        self, cands: list[GraspCandidate], target: GraspCandidate | None
+    ) -> tuple[GraspCandidate | None, GraspCandidate | None]:
+        """The top-scoring candidate and the one to execute (eq. 16 toward ``target``
+        for HEAPGrasp with ``final_grasp = "target"``, else the top-scoring one)."""
+        best = top_scoring(cands)
+        if self.adaptive and self.config.final_grasp == "target":
+            return best, select_target(cands, target, self.config.gamma1)
+        return best, best
+
     def plan(self) -> PlanResult:
         """Runs one phase up to the grasp (see the module docstring)."""
         cfg = self.config
@@ -256,90 +346,37 @@ class Pipeline:
         self.perception.reset()
         self.joint_path_errors = 0
         self.unreachable_waypoints = 0
-        compute = 0.0
-        motion = 0.0
-        current = self.initial_pose()
-        first = self._capture(current)
-        compute += self._perceive([first])
-        positions = [first.cam2world[:3, 3]]
-        current = first.cam2world
-        waypoints: list[dict[str, Any]] = []
+        first = self._capture(self.initial_pose())
+        phase = _PhaseLog(first.cam2world, [first.cam2world[:3, 3]])
+        phase.compute += self._perceive([first])
         target: GraspCandidate | None = None
         if self.adaptive:
-            assert self.view_scorer is not None
             for ell in range(cfg.L):
                 t0 = time.perf_counter()
                 cands = self.grasp_candidates(final=False)
                 # No candidate at this waypoint: no target, and eq. 18 uses s alone.
                 target = select_target(cands, target, cfg.gamma1)
-                t1 = time.perf_counter()
-                assert isinstance(self.perception, SilhouettePerception)
                 gamma2 = cfg.gamma2_first if ell == 0 else cfg.gamma2
-                ctx = ViewContext(
-                    self.perception.grid,
-                    current,
-                    self.candidates,
-                    self.sphere,
-                    self.camera,
-                    cfg.lam,
-                    self.world.object_scene,
-                    # A target planned where gamma2 = 0 is unreliable (§VI-B): no region.
-                    target=None if target is None or gamma2 == 0.0 else target.pose,
+                # A target planned where gamma2 = 0 is unreliable (§VI-B): no region.
+                self._view_step(
+                    phase, cands, target, gamma2, t0, time.perf_counter(), trusted=gamma2 > 0
                 )
-                scores = self.view_scorer.scores(ctx)
-                t2 = time.perf_counter()
-                u, v = select_next_waypoint(
-                    scores,
-                    self.candidates,
-                    current,
-                    None if target is None else target.pose,
-                    gamma2,
-                    cfg.gamma1,
-                )
-                t3 = time.perf_counter()
-                compute += t3 - t0
-                goal = self.candidates[u, v]
-                record = _candidate_record(target)
                 if gamma2 == 0.0:
                     # §VI-B: grasps planned before the first view waypoint are unreliable,
                     # which is why gamma2 = 0 there; neither may such a grasp anchor the
                     # target of eq. 16 at the next waypoint.
                     target = None
-                moved = self._move(current, goal)
-                if moved is None:
-                    continue
-                cap, duration, carve = moved
-                compute += carve
-                motion += duration
-                positions.extend(cap.positions[1:])
-                current = cap.poses[-1]
-                waypoints.append(
-                    {
-                        "index": [u, v],
-                        "position": goal[:3, 3].tolist(),
-                        "view_score": float(scores[u, v]),
-                        "view_score_max": float(scores.max()),
-                        "gamma2": gamma2,
-                        "target": record,
-                        "grasp_candidates": len(cands),
-                        "frames": len(cap),
-                        "duration_s": duration,
-                        "grasp_planning_s": t1 - t0,
-                        "view_planning_s": t2 - t1,
-                        "latency_s": t3 - t0,
-                    }
-                )
         else:
             for goal in self.fixed_waypoints():
-                moved = self._move(current, goal)
+                moved = self._move(phase.current, goal)
                 if moved is None:
                     continue
                 cap, duration, carve = moved
-                compute += carve
-                motion += duration
-                positions.extend(cap.positions[1:])
-                current = cap.poses[-1]
-                waypoints.append(
+                phase.compute += carve
+                phase.motion += duration
+                phase.positions.extend(cap.positions[1:])
+                phase.current = cap.poses[-1]
+                phase.waypoints.append(
                     {
                         "position": goal[:3, 3].tolist(),
                         "frames": len(cap),
@@ -348,20 +385,37 @@ class Pipeline:
                 )
         t0 = time.perf_counter()
         cands = self.grasp_candidates()
-        if self.adaptive:
-            chosen = select_target(cands, target, cfg.gamma1)
-        else:
-            chosen = top_scoring(cands)
+        best, chosen = self._final_choice(cands, target)
+        confirmations = 0
+        while (
+            self.adaptive
+            and confirmations < cfg.confirm_waypoints
+            and (chosen is None or chosen.score < cfg.confirm_below)
+        ):
+            # Not confident in the grasp on the final grid: one more view waypoint
+            # toward it (eq. 18-19), then plan again.
+            confirmations += 1
+            target = chosen if chosen is not None else target
+            self._view_step(
+                phase, cands, target, cfg.confirm_gamma2, t0, time.perf_counter(), trusted=True
+            )
+            t0 = time.perf_counter()
+            cands = self.grasp_candidates()
+            best, chosen = self._final_choice(cands, target)
         final_latency = time.perf_counter() - t0
-        compute += final_latency
+        phase.compute += final_latency
+        current, positions = phase.current, phase.positions
+        waypoints, compute, motion = phase.waypoints, phase.compute, phase.motion
         extra: dict[str, Any] = {
             "waypoints": waypoints,
             "frames": self.perception.frames_seen,
             "final_candidates": len(cands),
             "final_planning_s": final_latency,
+            "confirmation_waypoints": confirmations,
             "joint_path_errors": self.joint_path_errors,
             "unreachable_waypoints": self.unreachable_waypoints,
             "target_grasp": _candidate_record(chosen),
+            "best_grasp": _candidate_record(best),
         }
         if chosen is None:
             return PlanResult(
