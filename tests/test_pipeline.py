@@ -247,6 +247,13 @@ def test_an_interrupted_run_resumes_without_losing_scenes(tmp_path: Path) -> Non
         run(config, out, progress=False)
     with pytest.raises(ConfigError, match="objects"):
         run(config.replace({"objects": 3}), out, resume=True, progress=False)
+    # A run saved before a parameter existed ran as its default: it may be resumed with
+    # the default, not with another value.
+    saved_config = json.loads((out / "config.json").read_text())
+    del saved_config["confirm_below"]
+    (out / "config.json").write_text(json.dumps(saved_config))
+    with pytest.raises(ConfigError, match=r"confirm_below: 0.0 -> 0.5"):
+        run(config.replace({"confirm_below": 0.5}), out, resume=True, progress=False)
     summary = run(config, out, resume=True, progress=False)
     records = load_records(out)
     assert sorted(r["scene"] for r in records) == [0, 1, 2]

@@ -230,9 +230,13 @@ def _check_resume(out: Path, config: RunConfig, resume: bool) -> list[dict[str, 
     if saved_path.exists():
         saved = json.loads(saved_path.read_text())
         mine = config.to_dict()
-        diff = sorted(k for k in mine if k != "scenes" and saved.get(k) != mine[k])
+        # A parameter newer than the saved run ran as its default (new parameters
+        # default to the behaviour before them).
+        default = RunConfig().to_dict()
+        saved = {k: saved.get(k, default[k]) for k in mine}
+        diff = sorted(k for k in mine if k != "scenes" and saved[k] != mine[k])
         if diff:
-            detail = ", ".join(f"{k}: {saved.get(k)!r} -> {mine[k]!r}" for k in diff)
+            detail = ", ".join(f"{k}: {saved[k]!r} -> {mine[k]!r}" for k in diff)
             raise ConfigError(f"--resume: the configuration differs from {saved_path} ({detail})")
     # Failed scenes are retried on resume.
     return [r for r in records if "error" not in r]
