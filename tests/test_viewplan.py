@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 from heapgrasp import MeshScene, OccupancyGrid
 from heapgrasp.sim.camera import CameraSpec
-from heapgrasp.sim.motion import ViewSphere, interpolate
+from heapgrasp.sim.motion import ViewSphere, interpolate, interpolate_sampled
 from heapgrasp.viewplan import (
     OracleViewScorer,
     ViewContext,
@@ -75,6 +76,29 @@ def test_subsample_path_keeps_the_end_and_drops_the_start() -> None:
     np.testing.assert_array_equal(sub[-1], path[-1])
     assert not np.array_equal(sub[0], path[0])
     assert len(subsample_path(path[:1], 5)) == 1
+
+
+def test_sampled_paths_are_the_subsampled_interpolations_exactly() -> None:
+    # The oracle orients only the poses it keeps; they must be the very poses that
+    # interpolating every path and subsampling it gives (bit for bit), for every kind of
+    # path: along the sphere, radial, over the top, from off the sphere, none at all.
+    sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.30)
+    start = dataclasses.replace(sphere, radius=0.5).pose(-math.pi / 2, 0.9)
+    goals = np.concatenate(
+        [
+            sphere.candidates(8, 4, math.pi / 5).reshape(-1, 4, 4),
+            dataclasses.replace(sphere, radius=0.5).pose(-math.pi / 2, 0.9)[None],
+            sphere.pose(-math.pi / 2, 0.9)[None],
+            sphere.pose(math.pi / 2, 0.9)[None],
+        ]
+    )
+    for a in (start, sphere.pose(0.0, 0.0)):
+        fast = interpolate_sampled(a, goals, sphere, step=0.01, frames=10)
+        for goal, got in zip(goals, fast, strict=True):
+            want = subsample_path(interpolate(a, goal, sphere, step=0.01), 10)
+            np.testing.assert_array_equal(got, want)
+    with pytest.raises(ValueError, match="frames"):
+        interpolate_sampled(start, goals, sphere, step=0.01, frames=0)
 
 
 def test_fixed_waypoints() -> None:

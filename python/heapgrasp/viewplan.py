@@ -37,9 +37,10 @@ from heapgrasp import MeshScene, OccupancyGrid, score_views
 from heapgrasp.sim.camera import CameraSpec
 from heapgrasp.sim.motion import (
     ViewSphere,
+    arc_length_samples,
     circle_waypoints,
     hemisphere_waypoints,
-    interpolate,
+    interpolate_sampled,
 )
 
 __all__ = [
@@ -92,14 +93,7 @@ def subsample_path(poses: F64, n: int) -> F64:
     (already seen) pose excluded and the last included."""
     if len(poses) <= 1:
         return poses
-    arc = np.concatenate(
-        [[0.0], np.cumsum(np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1))]
-    )
-    if arc[-1] <= 0:
-        return poses[-1:]
-    want = arc[-1] * np.arange(1, n + 1) / n
-    idx = np.unique(np.clip(np.searchsorted(arc, want - 1e-12), 1, len(poses) - 1))
-    return np.asarray(poses[idx], dtype=np.float64)
+    return np.asarray(poses[arc_length_samples(poses[:, :3, 3], n)], dtype=np.float64)
 
 
 def target_region(
@@ -160,12 +154,13 @@ class OracleViewScorer:
 
     def trajectories(self, ctx: ViewContext) -> list[F64]:
         """The hypothetical frames of every candidate, flattened ``u``-major."""
-        flat = ctx.candidates.reshape(-1, 4, 4)
-        out = []
-        for pose in flat:
-            path = interpolate(ctx.current_pose, pose, ctx.sphere, step=self.step)
-            out.append(np.ascontiguousarray(subsample_path(path, self.frames_per_candidate)))
-        return out
+        return interpolate_sampled(
+            ctx.current_pose,
+            ctx.candidates.reshape(-1, 4, 4),
+            ctx.sphere,
+            step=self.step,
+            frames=self.frames_per_candidate,
+        )
 
     def scores(self, ctx: ViewContext) -> F32:
         """Eq. 14 for every candidate."""

@@ -38,10 +38,12 @@ __all__ = [
     "MotionLimits",
     "TimedPath",
     "ViewSphere",
+    "arc_length_samples",
     "circle_waypoints",
     "concatenate",
     "hemisphere_waypoints",
     "interpolate",
+    "interpolate_sampled",
     "look_at",
     "path_length",
     "plan_waypoints",
@@ -404,14 +406,57 @@ def interpolate(
     pa = _as_pose("pose_a", pose_a)
     pb = _as_pose("pose_b", pose_b)
     step = _positive("step", step)
-    center = sphere.center_array
-    target = sphere.target_array
-    up = np.array([0.0, 0.0, 1.0])
-    ea = pa[:3, 3].copy()
-    eb = pb[:3, 3].copy()
-    if np.array_equal(ea, eb) or float(_norm(eb - ea)) <= _MIN_DISTANCE:
-        return _look_at_many(ea[None, :], target, up)
+    eyes = _arc_eyes(pa[:3, 3], pb[:3, 3], sphere.center_array, step)
+    return _look_at_many(eyes, sphere.target_array, np.array([0.0, 0.0, 1.0]))
 
+
+def interpolate_sampled(
+    pose_a: npt.ArrayLike,
+    poses_b: npt.ArrayLike,
+    sphere: ViewSphere,
+    *,
+    step: float,
+    frames: int,
+) -> list[FloatArray]:
+    """:func:`interpolate` from ``pose_a`` to each of ``poses_b`` ``(N, 4, 4)``, each path
+    then reduced to at most ``frames`` poses evenly spaced in arc length, the first
+    (already seen) excluded and the last included: exactly the poses
+    ``subsample(interpolate(a, b))`` picks, but only those are oriented, which is what
+    makes scoring hundreds of hypothetical paths (eq. 14) cheap."""
+    pa = _as_pose("pose_a", pose_a)
+    pbs = _as_poses("poses_b", poses_b)
+    step = _positive("step", step)
+    if frames < 1:
+        raise InvalidValueError(f"frames: must be >= 1, got {frames}")
+    center, target = sphere.center_array, sphere.target_array
+    up = np.array([0.0, 0.0, 1.0])
+    out = []
+    for pb in pbs:
+        eyes = _arc_eyes(pa[:3, 3], pb[:3, 3], center, step)
+        idx = arc_length_samples(eyes, frames)
+        out.append(_look_at_many(np.ascontiguousarray(eyes[idx]), target, up))
+    return out
+
+
+def arc_length_samples(points: npt.ArrayLike, n: int) -> npt.NDArray[np.intp]:
+    """Indices of at most ``n`` of a polyline's ``(M, 3)`` points, evenly spaced in arc
+    length, the first point excluded (unless it is the only one) and the last
+    included."""
+    pts = np.asarray(points, dtype=np.float64)
+    if len(pts) <= 1:
+        return np.arange(len(pts))
+    arc = np.concatenate([[0.0], np.cumsum(_norm(np.diff(pts, axis=0)))])
+    if arc[-1] <= 0:
+        return np.array([len(pts) - 1])
+    want = arc[-1] * np.arange(1, n + 1) / n
+    return np.unique(np.clip(np.searchsorted(arc, want - 1e-12), 1, len(pts) - 1))
+
+
+def _arc_eyes(ea: FloatArray, eb: FloatArray, center: FloatArray, step: float) -> FloatArray:
+    """The eye positions of :func:`interpolate` (``(N, 3)``)."""
+    ea, eb = ea.copy(), eb.copy()
+    if np.array_equal(ea, eb) or float(_norm(eb - ea)) <= _MIN_DISTANCE:
+        return ea[None, :]
     da, db = ea - center, eb - center
     ra, rb = float(_norm(da)), float(_norm(db))
     if ra <= _MIN_DISTANCE or rb <= _MIN_DISTANCE:
@@ -445,7 +490,7 @@ def interpolate(
     eyes = center[None, :] + radii[:, None] * dirs
     eyes[0] = ea
     eyes[-1] = eb
-    return _look_at_many(eyes, target, up)
+    return eyes
 
 
 def path_length(poses: npt.ArrayLike) -> float:
