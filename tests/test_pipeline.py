@@ -195,6 +195,32 @@ def test_an_unconfident_final_grasp_takes_more_view_waypoints(
     assert [w["gamma2"] for w in result.extra["waypoints"][3:]] == [0.35] * extra
 
 
+@pytest.mark.parametrize(("confirm_below", "extra"), [(0.0, 0), (0.5, 1)])
+def test_no_final_grasp_takes_a_view_waypoint_only_when_confirming(
+    tmp_path: Path, confirm_below: float, extra: int
+) -> None:
+    # No candidate on the final grid: the paper's loop (confirm_below = 0) ends the
+    # phase without a grasp; with confirmation on, one more waypoint finds 0.23.
+    model = box_model(tmp_path, BOX)
+    script: list[list[GraspCandidate]] = [
+        [_candidate(0.05, 0.9)],
+        [_candidate(0.25, 0.95)],
+        [_candidate(0.24, 0.9)],
+        [],  # final grid
+        [_candidate(0.23, 0.9)],  # after the extra waypoint
+    ]
+    config = RunConfig(confirm_below=confirm_below)
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        pipeline = build_pipeline(config, world, view_scorer=_ScriptedViews())
+        calls = iter(script)
+        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
+        result = pipeline.plan()
+    assert result.extra["confirmation_waypoints"] == extra
+    assert len(result.extra["waypoints"]) == 3 + extra
+    assert (result.grasp is None) == (extra == 0)
+
+
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:

@@ -389,6 +389,7 @@ class Pipeline:
         confirmations = 0
         while (
             self.adaptive
+            and cfg.confirm_below > 0.0
             and confirmations < cfg.confirm_waypoints
             and (chosen is None or chosen.score < cfg.confirm_below)
         ):
