@@ -264,6 +264,19 @@ class Pipeline:
         return best
 
     # ------------------------------------------------------------------ one phase
+    def _visit(self, phase: _PhaseLog, goal: F64) -> tuple[Capture, float] | None:
+        """Moves the camera to ``goal`` capturing (:meth:`_move`) and logs the motion in
+        ``phase``; returns the capture and its duration, or None if unreachable."""
+        moved = self._move(phase.current, goal)
+        if moved is None:
+            return None
+        cap, duration, carve = moved
+        phase.compute += carve
+        phase.motion += duration
+        phase.positions.extend(cap.positions[1:])
+        phase.current = cap.poses[-1]
+        return cap, duration
+
     def _view_step(
         self,
         phase: _PhaseLog,
@@ -304,14 +317,10 @@ class Pipeline:
         t3 = time.perf_counter()
         phase.compute += t3 - t0
         goal = self.candidates[u, v]
-        moved = self._move(phase.current, goal)
-        if moved is None:
+        visited = self._visit(phase, goal)
+        if visited is None:
             return
-        cap, duration, carve = moved
-        phase.compute += carve
-        phase.motion += duration
-        phase.positions.extend(cap.positions[1:])
-        phase.current = cap.poses[-1]
+        cap, duration = visited
         phase.waypoints.append(
             {
                 "index": [u, v],
@@ -368,14 +377,10 @@ class Pipeline:
                     target = None
         else:
             for goal in self.fixed_waypoints():
-                moved = self._move(phase.current, goal)
-                if moved is None:
+                visited = self._visit(phase, goal)
+                if visited is None:
                     continue
-                cap, duration, carve = moved
-                phase.compute += carve
-                phase.motion += duration
-                phase.positions.extend(cap.positions[1:])
-                phase.current = cap.poses[-1]
+                cap, duration = visited
                 phase.waypoints.append(
                     {
                         "position": goal[:3, 3].tolist(),
