@@ -272,3 +272,100 @@ def test_a_grasp_above_a_ledge_costs_the_ledge_factor() -> None:
     np.testing.assert_allclose(half[changed], 0.5 * full[changed], rtol=1e-5)
     top_z = CENTRES[np.nonzero(changed)[2]]
     assert top_z.min() > 0.06 - 0.046, "ledge grasps reach no lower than the body's top"
+
+
+# --------------------------------------------------------------------------- the core's search
+
+
+def _pile(seed: int) -> np.ndarray:
+    """A seeded pile: upright and lying boxes and cylinders, some stacked, one cut by a
+    side face of the grid, as occupancy (float32)."""
+    rng = np.random.default_rng(seed)
+    x, y, z = np.meshgrid(CENTRES, CENTRES, CENTRES, indexing="ij")
+    occ = np.zeros(x.shape, dtype=bool)
+    for _ in range(6):
+        cx, cy = rng.uniform(0.04, 0.26, size=2)
+        yaw = rng.uniform(0, math.pi)
+        u = (x - cx) * math.cos(yaw) + (y - cy) * math.sin(yaw)
+        w = -(x - cx) * math.sin(yaw) + (y - cy) * math.cos(yaw)
+        base = rng.uniform(0.0, 0.03) if rng.random() < 0.3 else 0.0
+        kind = rng.integers(3)
+        if kind == 0:  # upright box
+            a, b, h = rng.uniform(0.02, 0.07, size=3)
+            occ |= (np.abs(u) < a / 2) & (np.abs(w) < b / 2) & (z >= base) & (z < base + h)
+        elif kind == 1:  # upright cylinder
+            rad, h = rng.uniform(0.015, 0.04), rng.uniform(0.03, 0.09)
+            occ |= (u**2 + w**2 < rad**2) & (z >= base) & (z < base + h)
+        else:  # cylinder lying along u
+            rad, length = rng.uniform(0.015, 0.035), rng.uniform(0.05, 0.12)
+            occ |= (np.abs(u) < length / 2) & (w**2 + (z - base - rad) ** 2 < rad**2)
+    # An object through the grid's side face (+x): no grasp may close across the cut.
+    occ |= (x > 0.27) & (np.abs(y - 0.15) < 0.02) & (z < 0.05)
+    return occ.astype(np.float32)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_core_search_equals_the_numpy_reference_bit_for_bit(seed: int) -> None:
+    import reference_antipodal
+
+    planner = AntipodalPlanner()
+    scene = planner._scene(_pile(seed) > 0, FRAME)
+    assert scene is not None
+    want = reference_antipodal.search(planner, scene)
+    got = planner._search(scene)
+    for name, w, g in zip(("quality", "orientation", "width"), want, got, strict=True):
+        np.testing.assert_array_equal(g, w, err_msg=name)
+    valid = want[0] > 0
+    # The comparison covers many grasps, tilted ones among them.
+    assert valid.sum() > 50
+    assert (planner._tilt[want[1][valid]] > 0).any()
+
+
+def _core_args(planner: AntipodalPlanner) -> dict:
+    scene = planner._scene(box_grid((0.15, 0.15, 0.04, 0.06, 0.05)) > 0, FRAME)
+    assert scene is not None
+    captured: dict = {}
+
+    def fake(*args: object) -> tuple:
+        names = ("occupied", "gradient", "labels", "centroids", "candidates")
+        names += ("rotations", "tilts", "cells", "params")
+        captured.update(zip(names, args, strict=True))
+        return (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0))
+
+    import heapgrasp.grasping.antipodal as mod
+
+    real = mod.antipodal_grasps
+    mod.antipodal_grasps = fake  # type: ignore[assignment]
+    try:
+        planner._search(scene)
+    finally:
+        mod.antipodal_grasps = real
+    return captured
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (lambda a: a["params"].pop("min_depth"), 'params: missing key "min_depth"'),
+        (lambda a: a["params"].update(voxel_size=float("nan")), "voxel_size"),
+        (lambda a: a["cells"].update(palm=((1, 2),)), "palm"),
+        (lambda a: a.update(labels=a["labels"].astype(np.int64)), "labels: expected dtype int32"),
+        (lambda a: a["labels"].__setitem__((0, 0, 0), 99), "labels"),
+        (lambda a: a["candidates"].__setitem__((0, 0), -1), "candidates"),
+        (lambda a: a["candidates"].__setitem__((0, 0), 40), "candidates"),
+        (lambda a: a.update(tilts=a["tilts"][:3]), "tilts"),
+        (lambda a: a["gradient"].__setitem__((0, 1, 2, 3), np.inf), "gradient"),
+        (lambda a: a.update(occupied=a["occupied"][:, :, :39]), "occupied"),
+    ],
+)
+def test_bad_core_arguments_raise_naming_the_argument(change, match: str) -> None:
+    from heapgrasp import HeapgraspError
+    from heapgrasp._core import antipodal_grasps
+
+    args = _core_args(AntipodalPlanner())
+    args["labels"] = args["labels"].copy()
+    args["candidates"] = args["candidates"].copy()
+    args["gradient"] = args["gradient"].copy()
+    change(args)
+    with pytest.raises(HeapgraspError, match=match):
+        antipodal_grasps(**args)

@@ -4,6 +4,7 @@
 //! ([`convert`]), releases the GIL around the core call, and maps core errors onto the
 //! `HeapgraspError` hierarchy ([`errors`]). No algorithm lives here.
 
+mod antipodal;
 mod camera;
 mod convert;
 mod errors;
@@ -39,6 +40,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<raster::PyMeshScene>()?;
     m.add_class::<tsdf::PyTsdfVolume>()?;
     m.add_function(wrap_pyfunction!(score::score_views, m)?)?;
+    m.add_function(wrap_pyfunction!(antipodal::antipodal_grasps, m)?)?;
     m.add_function(wrap_pyfunction!(filter::gaussian_filter3d, m)?)?;
     m.add_function(wrap_pyfunction!(filter::maximum_filter3d, m)?)?;
     m.add_function(wrap_pyfunction!(filter::nms3d, m)?)?;

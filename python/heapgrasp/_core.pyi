@@ -9,8 +9,8 @@ corner, ``size``, ``resolution`` R); voxel ``[a, b, c]`` has its centre at
 Arrays must be C-contiguous with the stated dtype; anything else raises ``ShapeError``.
 """
 
-from collections.abc import Sequence
-from typing import final
+from collections.abc import Mapping, Sequence
+from typing import Any, final
 
 import numpy as np
 import numpy.typing as npt
@@ -202,6 +202,30 @@ def score_views(
     high-confidence when a new view segments them. With ``region`` (an ``(R, R, R)``
     bool or uint8 mask) both counts are restricted to its voxels; all zeros when it holds
     no high-confidence voxel.
+    """
+
+def antipodal_grasps(
+    occupied: npt.NDArray[np.bool_],
+    gradient: _F64,
+    labels: npt.NDArray[np.int32],
+    centroids: _F64,
+    candidates: npt.NDArray[np.int64],
+    rotations: _F64,
+    tilts: _F64,
+    cells: Mapping[str, Any],
+    params: Mapping[str, Any],
+) -> tuple[_F64, npt.NDArray[np.int64], _F64]:
+    """Each candidate's best antipodal grasp over every TCP orientation.
+
+    ``occupied`` (R, R, R) bool; ``gradient`` (3, R, R, R) of the smoothed occupancy;
+    ``labels`` (R, R, R) int32 blob labels indexing ``centroids`` (L, 3) (metres from the
+    grid origin); ``candidates`` (N, 3) voxel indices of the TCPs; ``rotations``
+    (K, 3, 3) TCP-to-world with their ``tilts`` (K,). ``cells``: the gripper's boxes in
+    lattice cells (``x_pad``, ``x_clear``, ``x_fit``, ``z_contact``, ``z_thin``,
+    ``z_thick`` as inclusive ``(lo, hi)``; ``n_thin``, ``n_thick``; ``palm``: two boxes of
+    three ranges). ``params``: the gripper geometry and thresholds of
+    ``AntipodalPlanner`` by name. Returns per candidate the best quality (0: none), the
+    index of its orientation and its width (m).
     """
 
 def gaussian_filter3d(volume: _F32, sigma: float) -> _F32:

@@ -22,6 +22,7 @@
 // `!(x > 0.0)` is how the core rejects NaN together with out-of-range values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod antipodal;
 pub mod camera;
 pub mod carve;
 pub mod error;
@@ -33,6 +34,7 @@ pub mod parallel;
 pub mod primitives;
 pub mod projector;
 pub mod raster;
+mod rounding;
 pub mod score;
 pub mod tsdf;
 

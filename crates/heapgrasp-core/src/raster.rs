@@ -31,6 +31,7 @@ use parry3d::shape::TriMesh;
 
 use crate::camera::{PinholeCamera, Pose};
 use crate::error::{Error, Result};
+use crate::rounding::{ceil_fast, floor_fast};
 
 /// Largest accepted vertex or face count of one mesh.
 pub const MAX_MESH_ELEMENTS: usize = 1 << 26;
@@ -394,30 +395,6 @@ impl MeshScene {
 
 /// Slack (pixels) of the projected-vertex box test.
 const BOX_SLACK: f64 = 1e-6;
-
-/// `floor(x)` without libm: the baseline x86-64 target has no `roundsd`, and `f64::floor`
-/// is a function call there. Exact for |x| < 2^53; beyond ±2^63 it saturates, which the
-/// callers' clamping to the image makes harmless.
-#[inline(always)]
-fn floor_fast(x: f64) -> f64 {
-    let t = x as i64 as f64;
-    if t > x {
-        t - 1.0
-    } else {
-        t
-    }
-}
-
-/// `ceil(x)`; see [`floor_fast`].
-#[inline(always)]
-fn ceil_fast(x: f64) -> f64 {
-    let t = x as i64 as f64;
-    if t < x {
-        t + 1.0
-    } else {
-        t
-    }
-}
 
 /// Reusable per-frame buffers of the rasteriser (camera-frame vertices and their
 /// projections), so rendering many frames allocates nothing.

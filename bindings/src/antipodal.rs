@@ -1,0 +1,186 @@
+//! `antipodal_grasps`.
+
+use heapgrasp_core::antipodal::{self, AntipodalParams, AntipodalScene, CellRange, GripperCells};
+use numpy::PyArray1;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::convert::{array_arg, detached};
+use crate::errors::{InvalidValueError, ShapeError};
+
+fn item<'py>(d: &Bound<'py, PyDict>, dict: &str, key: &str) -> PyResult<Bound<'py, PyAny>> {
+    d.get_item(key)?
+        .ok_or_else(|| InvalidValueError::new_err(format!("{dict}: missing key {key:?}")))
+}
+
+fn float(d: &Bound<'_, PyDict>, dict: &str, key: &str) -> PyResult<f64> {
+    item(d, dict, key)?
+        .extract::<f64>()
+        .map_err(|_| InvalidValueError::new_err(format!("{dict}[{key:?}]: expected a number")))
+}
+
+fn int(d: &Bound<'_, PyDict>, dict: &str, key: &str) -> PyResult<i64> {
+    item(d, dict, key)?
+        .extract::<i64>()
+        .map_err(|_| InvalidValueError::new_err(format!("{dict}[{key:?}]: expected an int")))
+}
+
+fn pair<T: for<'a, 'py> FromPyObject<'a, 'py>>(
+    d: &Bound<'_, PyDict>,
+    dict: &str,
+    key: &str,
+) -> PyResult<(T, T)> {
+    item(d, dict, key)?.extract::<(T, T)>().map_err(|_| {
+        InvalidValueError::new_err(format!("{dict}[{key:?}]: expected a pair of numbers"))
+    })
+}
+
+fn gripper_cells(d: &Bound<'_, PyDict>) -> PyResult<GripperCells> {
+    let palm: Vec<[CellRange; 3]> = item(d, "cells", "palm")?
+        .extract::<Vec<(CellRange, CellRange, CellRange)>>()
+        .map_err(|_| InvalidValueError::new_err("cells[\"palm\"]: expected boxes of 3 ranges"))?
+        .into_iter()
+        .map(|(x, y, z)| [x, y, z])
+        .collect();
+    let palm: [[CellRange; 3]; 2] = palm.try_into().map_err(|_| {
+        InvalidValueError::new_err("cells[\"palm\"]: expected 2 boxes (front, back)")
+    })?;
+    Ok(GripperCells {
+        x_pad: pair(d, "cells", "x_pad")?,
+        x_clear: pair(d, "cells", "x_clear")?,
+        x_fit: pair(d, "cells", "x_fit")?,
+        z_contact: pair(d, "cells", "z_contact")?,
+        z_thin: pair(d, "cells", "z_thin")?,
+        z_thick: pair(d, "cells", "z_thick")?,
+        n_thin: int(d, "cells", "n_thin")?,
+        n_thick: int(d, "cells", "n_thick")?,
+        palm,
+    })
+}
+
+fn planner_params(d: &Bound<'_, PyDict>) -> PyResult<AntipodalParams> {
+    let f = |k: &str| float(d, "params", k);
+    let half = |k: &str| pair::<f64>(d, "params", k).map(|(x, y)| [x, y]);
+    Ok(AntipodalParams {
+        voxel_size: f("voxel_size")?,
+        origin_z: f("origin_z")?,
+        max_opening: f("max_opening")?,
+        opening_margin: f("opening_margin")?,
+        clearance: f("clearance")?,
+        finger_width: f("finger_width")?,
+        finger_tip: f("finger_tip")?,
+        finger_base: f("finger_base")?,
+        finger_split: f("finger_split")?,
+        tip_thickness: f("tip_thickness")?,
+        base_thickness: f("base_thickness")?,
+        palm_front: f("palm_front")?,
+        palm_split: f("palm_split")?,
+        palm_back: f("palm_back")?,
+        palm_front_half: half("palm_front_half")?,
+        palm_back_half: half("palm_back_half")?,
+        pregrasp_distance: f("pregrasp_distance")?,
+        table_z: f("table_z")?,
+        table_clearance: f("table_clearance")?,
+        min_depth: f("min_depth")?,
+        target_depth: f("target_depth")?,
+        min_patch: int(d, "params", "min_patch")?,
+        min_contact_height: f("min_contact_height")?,
+        ledge_factor: f("ledge_factor")?,
+        friction_angle: f("friction_angle")?,
+    })
+}
+
+/// Each candidate's best antipodal grasp over `rotations` (K, 3, 3) with `tilts` (K,):
+/// (quality float64 (N,), orientation index int64 (N,), width float64 (N,)).
+#[pyfunction]
+#[pyo3(signature = (occupied, gradient, labels, centroids, candidates, rotations, tilts, cells, params))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+pub fn antipodal_grasps<'py>(
+    py: Python<'py>,
+    occupied: &Bound<'py, PyAny>,
+    gradient: &Bound<'py, PyAny>,
+    labels: &Bound<'py, PyAny>,
+    centroids: &Bound<'py, PyAny>,
+    candidates: &Bound<'py, PyAny>,
+    rotations: &Bound<'py, PyAny>,
+    tilts: &Bound<'py, PyAny>,
+    cells: &Bound<'py, PyDict>,
+    params: &Bound<'py, PyDict>,
+) -> PyResult<(
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<i64>>,
+    Bound<'py, PyArray1<f64>>,
+)> {
+    let occ = array_arg::<bool>(occupied, "occupied", "bool", Some(3))?;
+    let r = occ.shape[0];
+    let cube = |name: &str, shape: &[usize], want: &[usize]| -> PyResult<()> {
+        if shape != want {
+            return Err(ShapeError::new_err(format!(
+                "{name}: expected shape {want:?}, got {shape:?}"
+            )));
+        }
+        Ok(())
+    };
+    cube("occupied", &occ.shape, &[r, r, r])?;
+    let grad = array_arg::<f64>(gradient, "gradient", "float64", Some(4))?;
+    cube("gradient", &grad.shape, &[3, r, r, r])?;
+    let lab = array_arg::<i32>(labels, "labels", "int32", Some(3))?;
+    cube("labels", &lab.shape, &[r, r, r])?;
+    let cen = array_arg::<f64>(centroids, "centroids", "float64", Some(2))?;
+    cube("centroids", &cen.shape[1..], &[3])?;
+    let cand = array_arg::<i64>(candidates, "candidates", "int64", Some(2))?;
+    cube("candidates", &cand.shape[1..], &[3])?;
+    let rot = array_arg::<f64>(rotations, "rotations", "float64", Some(3))?;
+    cube("rotations", &rot.shape[1..], &[3, 3])?;
+    let tilt = array_arg::<f64>(tilts, "tilts", "float64", Some(1))?;
+    let cand_idx = cand
+        .as_slice()
+        .chunks_exact(3)
+        .map(|p| {
+            let mut out = [0usize; 3];
+            for (o, &x) in out.iter_mut().zip(p) {
+                *o = usize::try_from(x).map_err(|_| {
+                    InvalidValueError::new_err(format!(
+                        "candidates: voxel indices must be >= 0, got {p:?}"
+                    ))
+                })?;
+            }
+            Ok(out)
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let cen_rows: Vec<[f64; 3]> = cen
+        .as_slice()
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
+    let rots: Vec<[[f64; 3]; 3]> = rot
+        .as_slice()
+        .chunks_exact(9)
+        .map(|m| [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]])
+        .collect();
+    let cells = gripper_cells(cells)?;
+    let params = planner_params(params)?;
+    let (occ_s, grad_s, lab_s, tilt_s) = (
+        occ.as_slice(),
+        grad.as_slice(),
+        lab.as_slice(),
+        tilt.as_slice(),
+    );
+    let best = detached(py, move || {
+        let scene = AntipodalScene {
+            resolution: r,
+            occupied: occ_s,
+            gradient: grad_s,
+            labels: lab_s,
+            centroids: &cen_rows,
+            candidates: &cand_idx,
+        };
+        antipodal::best_grasps(&scene, &cells, &params, &rots, tilt_s)
+    })?;
+    let orientation: Vec<i64> = best.orientation.into_iter().map(|k| k as i64).collect();
+    Ok((
+        PyArray1::from_vec(py, best.quality),
+        PyArray1::from_vec(py, orientation),
+        PyArray1::from_vec(py, best.width),
+    ))
+}
