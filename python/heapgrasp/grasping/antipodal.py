@@ -45,6 +45,13 @@ next to occupied voxels) and orientation:
    width or more (:mod:`heapgrasp.roofs` trims most of it); contacts above a ledge may be
    on what is left of it, with the object below the fingertips.
 
+The search over orientations and candidates runs in the Rust core
+(``heapgrasp._core.antipodal_grasps``, module ``antipodal`` of ``heapgrasp-core``,
+orientations in parallel); this module prepares its input (blobs, their centroids, the
+smoothed occupancy's gradient, the candidate TCPs, the gripper in lattice cells) and
+turns its output into grasp volumes. The NumPy implementation it replaced is the test
+reference (``tests/reference_antipodal.py``); the two agree bit for bit.
+
 Blobs of occupied voxels that do not reach down to the table (``support_height``) are
 carving artefacts (e.g. voxels near the top of the cube seen from a few views only) and
 are ignored. Every voxel keeps its best orientation. A valid grasp stays valid for TCPs
