@@ -251,3 +251,26 @@ def test_perception_keeps_what_the_silhouettes_show() -> None:
     assert _top(few.grasp_input(), *post) > _top(trimmed, *post)
     few.reset()
     assert few.views == [] and few.frames_seen == 0
+
+
+def test_painting_boxes_equals_painting_them_one_by_one() -> None:
+    from heapgrasp.roofs import _paint
+
+    rng = np.random.default_rng(7)
+    h, w = 24, 32
+    n = 60
+    u0 = rng.integers(-2, w + 2, n)
+    v0 = rng.integers(-2, h + 2, n)
+    u1 = np.minimum(u0 + rng.integers(-2, 8, n), w - 1)  # some empty boxes
+    v1 = np.minimum(v0 + rng.integers(-2, 8, n), h - 1)
+    u0, v0 = np.maximum(u0, 0), np.maximum(v0, 0)
+    ok = rng.random(n) < 0.8
+    for value in (True, False):
+        start = rng.random((h, w)) < 0.5
+        want = start.copy()
+        for i in np.flatnonzero(ok):
+            if u1[i] >= u0[i] and v1[i] >= v0[i]:
+                want[v0[i] : v1[i] + 1, u0[i] : u1[i] + 1] = value
+        got = _paint(start.copy(), (u0, u1, v0, v1, ok), value=value)
+        np.testing.assert_array_equal(got, want)
+        assert (got != start).any()

@@ -273,11 +273,15 @@ def _paint(
     if len(u0) == 0:
         return image
     h, w = image.shape
-    diff = np.zeros((h + 1, w + 1), dtype=np.int32)
-    np.add.at(diff, (v0, u0), 1)
-    np.add.at(diff, (v0, u1 + 1), -1)
-    np.add.at(diff, (v1 + 1, u0), -1)
-    np.add.at(diff, (v1 + 1, u1 + 1), 1)
+    # The boxes' corners as +1/-1 in a difference image (summed with bincount, exact on
+    # these small integers and much faster than np.add.at), then integrated.
+    stride = w + 1
+    corners = np.concatenate(
+        [v0 * stride + u0, v0 * stride + u1 + 1, (v1 + 1) * stride + u0, (v1 + 1) * stride + u1 + 1]
+    )
+    signs = np.repeat(np.array([1.0, -1.0, -1.0, 1.0]), len(u0))
+    diff = np.bincount(corners, weights=signs, minlength=(h + 1) * stride)
+    diff = diff.astype(np.int64).reshape(h + 1, stride)
     hit = np.cumsum(np.cumsum(diff, axis=0), axis=1)[:h, :w] > 0
     image[hit] = value
     return image
