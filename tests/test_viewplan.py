@@ -6,10 +6,19 @@ import dataclasses
 import math
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 from heapgrasp import MeshScene, OccupancyGrid
 from heapgrasp.sim.camera import CameraSpec
-from heapgrasp.sim.motion import ViewSphere, interpolate, interpolate_sampled
+from heapgrasp.sim.motion import (
+    ViewSphere,
+    _arc_eyes,
+    _look_at_many,
+    arc_length_samples,
+    interpolate,
+    interpolate_sampled,
+    look_at,
+)
 from heapgrasp.viewplan import (
     OracleViewScorer,
     ViewContext,
@@ -99,6 +108,92 @@ def test_sampled_paths_are_the_subsampled_interpolations_exactly() -> None:
             np.testing.assert_array_equal(got, want)
     with pytest.raises(ValueError, match="frames"):
         interpolate_sampled(start, goals, sphere, step=0.01, frames=0)
+
+
+def _sampled_one_by_one(
+    start: npt.NDArray[np.float64],
+    goals: npt.NDArray[np.float64],
+    sphere: ViewSphere,
+    step: float,
+    frames: int,
+) -> list[npt.NDArray[np.float64]]:
+    """The per-goal loop interpolate_sampled was (one path's eyes, samples, poses)."""
+    up = np.array([0.0, 0.0, 1.0])
+    out = []
+    for goal in goals:
+        eyes = _arc_eyes(start[:3, 3], goal[:3, 3], sphere.center_array, step)
+        idx = arc_length_samples(eyes, frames)
+        out.append(_look_at_many(np.ascontiguousarray(eyes[idx]), sphere.target_array, up))
+    return out
+
+
+def test_sampled_paths_equal_the_per_goal_loop_bit_for_bit() -> None:
+    # All paths at once must give the poses of one path at a time, bit for bit: random
+    # goals on and off the sphere, below it, and the degenerate ones (the start itself or
+    # within 1e-12 of it, a tiny move, radial moves, antipodal and nearly antipodal
+    # goals, pole to pole), for several starts, steps and frame counts.
+    rng = np.random.default_rng(11)
+    sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.30)
+    c, tgt = sphere.center_array, sphere.target_array
+
+    def pose_at(eye: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        return look_at(eye, tgt)
+
+    def rotated(d: npt.NDArray[np.float64], angle: float) -> npt.NDArray[np.float64]:
+        # d turned by `angle` about an axis perpendicular to it.
+        axis = np.cross(d, [0.3, -0.5, 0.8])
+        axis /= np.linalg.norm(axis)
+        return d * math.cos(angle) + np.cross(axis, d) * math.sin(angle)
+
+    starts = [
+        sphere.pose(0.3, 0.5),
+        sphere.pose(0.0, 0.0),  # the top pole: the theta = 0 candidates coincide with it
+        dataclasses.replace(sphere, radius=0.5).pose(-2.0, 1.2),
+        pose_at(c + np.array([0.2, -0.1, -0.15])),  # below the sphere's centre
+    ]
+    for start in starts:
+        ea = start[:3, 3]
+        da = ea - c
+        dirs = rng.normal(size=(60, 3))
+        dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+        radii = rng.uniform(0.1, 0.8, size=60)
+        radii[:30] = sphere.radius  # half of them on the sphere
+        eyes = [c + r * d for r, d in zip(radii, dirs, strict=True)]
+        eyes += [
+            ea.copy(),  # the start itself
+            ea + np.array([1e-13, 0.0, -1e-13]),  # within 1e-12: no motion either
+            ea + np.array([1e-9, 2e-9, 0.0]),  # a tiny move
+            c + 1.7 * da,  # radial, outward
+            c + 0.4 * da,  # radial, inward
+            c - da,  # antipodal
+            c - 0.6 * da,  # antipodal, at another radius
+            c + rotated(-da, 1e-11),  # nearly antipodal: taken as antipodal
+            c + rotated(-da, 1e-7),  # nearly antipodal: a plane of its own
+            c + rotated(da, 1e-7),  # nearly the same direction
+            c + np.array([0.0, 0.0, -sphere.radius]),  # the bottom pole
+        ]
+        goals = np.stack([pose_at(e) for e in eyes])
+        for step, frames in [(0.01, 10), (0.003, 1), (0.02, 3), (0.5, 10), (0.01, 80)]:
+            fast = interpolate_sampled(start, goals, sphere, step=step, frames=frames)
+            slow = _sampled_one_by_one(start, goals, sphere, step, frames)
+            assert len(fast) == len(slow) == len(goals)
+            for k, (got, want) in enumerate(zip(fast, slow, strict=True)):
+                assert got.shape == want.shape, (k, step, frames)
+                np.testing.assert_array_equal(got, want, err_msg=f"goal {k}, {step}, {frames}")
+    # Only the start: one pose per goal, the start's eye.
+    same = np.stack([starts[0]] * 3)
+    fast = interpolate_sampled(starts[0], same, sphere, step=0.01, frames=10)
+    for got, want in zip(fast, _sampled_one_by_one(starts[0], same, sphere, 0.01, 10), strict=True):
+        assert got.shape == (1, 4, 4)
+        np.testing.assert_array_equal(got, want)
+    # A goal at the sphere's centre has no direction; one at the target no orientation.
+    for bad in (c, tgt):
+        goals = np.stack([sphere.pose(1.0, 0.4), pose_at(c + np.array([0.1, 0.0, 0.0]))])
+        goals[1, :3, 3] = bad
+        with pytest.raises(ValueError, match=r"sphere\.center|target"):
+            _sampled_one_by_one(starts[0], goals, sphere, 0.01, 10)
+        with pytest.raises(ValueError, match=r"sphere\.center|target"):
+            interpolate_sampled(starts[0], goals, sphere, step=0.01, frames=10)
 
 
 def test_fixed_waypoints() -> None:

@@ -4,8 +4,9 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use heapgrasp_benches::{
     camera, candidate_trajectories, grid, mesh_scene, ring, sphere_masks, trajectory, view_pose,
+    CUBE,
 };
-use heapgrasp_core::{nms, score, OccupancyGrid};
+use heapgrasp_core::{nms, score, GridSpec, OccupancyGrid};
 
 fn carve(c: &mut Criterion) {
     let mut group = c.benchmark_group("carve_30_views");
@@ -89,8 +90,29 @@ fn score_views(c: &mut Criterion) {
                 score::score_views(&occ, &scene, &cam, &trajectories, 0.9).expect("valid input")
             })
         });
+        // Eq. 14 counted on the column of radius 0.08 m around the scene centre (the
+        // pipeline's target column, `target_radius`).
+        let region = column_region(occ.spec(), [CUBE / 2.0, CUBE / 2.0], 0.08);
+        group.bench_function(format!("{name}_column_0.08"), |b| {
+            b.iter(|| {
+                score::score_views_in(&occ, &scene, &cam, &trajectories, 0.9, Some(&region))
+                    .expect("valid input")
+            })
+        });
     }
     group.finish();
+}
+
+/// The voxels whose centre lies within `radius` of `xy` in x–y (a vertical column, as
+/// `heapgrasp.viewplan.target_region`).
+fn column_region(spec: &GridSpec, xy: [f64; 2], radius: f64) -> Vec<bool> {
+    (0..spec.voxel_count())
+        .map(|i| {
+            let [a, b, c] = spec.unflatten(i);
+            let p = spec.voxel_center(a, b, c);
+            (p.x - xy[0]).hypot(p.y - xy[1]) <= radius
+        })
+        .collect()
 }
 
 fn nms_bench(c: &mut Criterion) {

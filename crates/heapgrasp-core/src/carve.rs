@@ -128,6 +128,33 @@ pub(crate) fn carve_one(grid: &GridSpec, frame: &PreparedFrame, seg: &mut [u32],
     );
 }
 
+/// Adds one prepared frame to the listed column prefixes only: for each `(a, b, len)`,
+/// the voxels `(a, b, 0..len)` (`seg`, `vis`: flat buffers of the whole grid; the other
+/// voxels are left as they are). Each voxel gets exactly the counts [`carve_one`] gives
+/// it: the column loop computes every voxel from its own index, so a shorter column
+/// changes nothing for the voxels it keeps.
+pub(crate) fn carve_columns(
+    grid: &GridSpec,
+    frame: &PreparedFrame,
+    columns: &[(u32, u32, u32)],
+    seg: &mut [u32],
+    vis: &mut [u32],
+) {
+    let r = grid.resolution();
+    for &(a, b, len) in columns {
+        let (a, b, len) = (a as usize, b as usize, len as usize);
+        let off = (a * r + b) * r;
+        let col = frame.projector.column(a, b);
+        carve_column(
+            &col,
+            &frame.projector.intr,
+            &frame.words,
+            &mut seg[off..off + len],
+            &mut vis[off..off + len],
+        );
+    }
+}
+
 /// Carves the x-slab `rows` of the grid; `seg` and `vis` hold exactly those rows.
 fn carve_slab(
     grid: &GridSpec,

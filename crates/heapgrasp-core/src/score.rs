@@ -17,15 +17,23 @@
 //!   `(s + M) / (v + M) >= λ` (occupancy can at best rise to that), so only those voxels
 //!   are tracked; every other voxel contributes 0 to the "after" count.
 //! - The far end of the trajectory (the candidate view, the most informative frame) is
-//!   carved first, densely over the whole grid with the SIMD kernel of [`crate::carve`].
+//!   carved first with the SIMD kernel of [`crate::carve`]. When more than a quarter of
+//!   the grid is tracked, densely over the whole grid, the silhouette rasterised over the
+//!   grid's pixels. Otherwise (a small region `R`, or a well-observed grid) only over the
+//!   grid columns `(a, b, ·)` holding tracked voxels, up to the highest one, with the
+//!   silhouette rasterised only inside the pixels of the tracked voxels' bounding box:
+//!   the same kernel computes every voxel from its own index, so each tracked voxel gets
+//!   exactly the counts of the dense carve, and the scores do not depend on the path.
 //!   A voxel that can then no longer reach λ, even if every remaining frame segments it,
 //!   is dropped; the `(s, v) -> high-confidence` test is a table lookup
 //!   ([`HighConfidenceTable`]) rather than a division.
-//! - If more than a quarter of the grid is still undecided (typically voxels no view has
-//!   seen yet, which only a frame that sees them can decide), the remaining frames are
-//!   carved densely too. Otherwise each remaining frame visits only the surviving
-//!   voxels, drops the ones that can no longer reach λ, and rasterises its silhouette
-//!   only inside the bounding box of their pixels ([`MeshScene::render_mask_into`]).
+//! - If the first frame was dense and more than a quarter of the grid is still
+//!   undecided (typically voxels no view has seen yet, which only a frame that sees them
+//!   can decide), the remaining frames are carved densely too. Otherwise each remaining
+//!   frame visits only the surviving voxels, drops the ones that can no longer reach λ,
+//!   and rasterises its silhouette only inside the bounding box of their pixels
+//!   ([`MeshScene::render_mask_into`]; a pixel's value does not depend on the rectangle
+//!   rendered).
 //!
 //! Candidates run in parallel (`std::thread::scope`). Voxel centres are projected with
 //! the f32 kernel of [`crate::projector`], so results equal integrating the rendered
@@ -33,7 +41,7 @@
 //! pixel border.
 
 use crate::camera::{PinholeCamera, Pose};
-use crate::carve::{carve_one, PreparedFrame};
+use crate::carve::{carve_columns, carve_one, PreparedFrame};
 use crate::error::{Error, Result};
 use crate::occupancy::{HighConfidenceTable, OccupancyGrid};
 use crate::parallel;
@@ -49,6 +57,58 @@ struct Tracked {
     abc: Vec<[f32; 3]>,
     seg: Vec<u32>,
     vis: Vec<u32>,
+    /// The grid columns holding tracked voxels, as `(a, b, len)`: every tracked voxel of
+    /// column `(a, b)` lies in `(a, b, 0..len)`.
+    columns: Vec<(u32, u32, u32)>,
+    /// Smallest and largest voxel index of the tracked voxels on each axis.
+    lo: [usize; 3],
+    hi: [usize; 3],
+}
+
+impl Tracked {
+    /// The voxels of `region` (`None`: all) that can end high-confidence after `max_m`
+    /// more frames.
+    fn collect(
+        grid: &OccupancyGrid,
+        region: Option<&[bool]>,
+        table: &HighConfidenceTable,
+        max_m: u32,
+    ) -> Self {
+        let mut tracked = Self {
+            flat: Vec::new(),
+            abc: Vec::new(),
+            seg: Vec::new(),
+            vis: Vec::new(),
+            columns: Vec::new(),
+            lo: [usize::MAX; 3],
+            hi: [0; 3],
+        };
+        let spec = grid.spec();
+        for (i, (&s, &v)) in grid.segmented().iter().zip(grid.visible()).enumerate() {
+            if region.is_none_or(|r| r[i]) && table.contains(s + max_m, v + max_m) {
+                tracked.push(i, spec.unflatten(i), s, v);
+            }
+        }
+        tracked
+    }
+
+    /// Appends voxel `i` = `[a, b, c]` with counts `(s, v)`; voxels come in increasing
+    /// flat order, so those of one column are consecutive.
+    fn push(&mut self, i: usize, [a, b, c]: [usize; 3], s: u32, v: u32) {
+        self.flat.push(i as u32);
+        self.abc.push([a as f32, b as f32, c as f32]);
+        self.seg.push(s);
+        self.vis.push(v);
+        let (a32, b32, len) = (a as u32, b as u32, c as u32 + 1);
+        match self.columns.last_mut() {
+            Some(col) if col.0 == a32 && col.1 == b32 => col.2 = len,
+            _ => self.columns.push((a32, b32, len)),
+        }
+        for (axis, x) in [a, b, c].into_iter().enumerate() {
+            self.lo[axis] = self.lo[axis].min(x);
+            self.hi[axis] = self.hi[axis].max(x);
+        }
+    }
 }
 
 /// Scores every candidate trajectory by eq. 14 (see the module docs).
@@ -104,7 +164,6 @@ pub fn score_views_in(
     let max_m = trajectories.iter().map(Vec::len).max().unwrap_or(0) as u32;
     let max_v = grid.visible().iter().copied().max().unwrap_or(0);
     let table = HighConfidenceTable::new(lam, max_v + max_m);
-    let in_region = |i: usize| region.is_none_or(|r| r[i]);
     let before = match region {
         None => grid.count_high_confidence(lam),
         Some(r) => grid
@@ -119,21 +178,8 @@ pub fn score_views_in(
         return Ok(vec![0.0; trajectories.len()]);
     }
     let spec = grid.spec();
-    let mut tracked = Tracked {
-        flat: Vec::new(),
-        abc: Vec::new(),
-        seg: Vec::new(),
-        vis: Vec::new(),
-    };
-    for (i, (&s, &v)) in grid.segmented().iter().zip(grid.visible()).enumerate() {
-        if in_region(i) && table.contains(s + max_m, v + max_m) {
-            let [a, b, c] = spec.unflatten(i);
-            tracked.flat.push(i as u32);
-            tracked.abc.push([a as f32, b as f32, c as f32]);
-            tracked.seg.push(s);
-            tracked.vis.push(v);
-        }
-    }
+    let tracked = Tracked::collect(grid, region, &table, max_m);
+    let dense_first = tracked.flat.len() * DENSE_FRACTION > spec.voxel_count();
     let work: usize = trajectories.iter().map(Vec::len).sum::<usize>() * tracked.flat.len().max(1);
     let threads = parallel::threads_for(work, 1 << 16, trajectories.len());
     let before = before as f32;
@@ -141,7 +187,15 @@ pub fn score_views_in(
         let mut ws = Workspace::new(grid, camera);
         range
             .map(|k| {
-                let after = ws.count_after(grid, scene, camera, &tracked, &table, &trajectories[k]);
+                let after = ws.count_after(
+                    grid,
+                    scene,
+                    camera,
+                    &tracked,
+                    &table,
+                    &trajectories[k],
+                    dense_first,
+                );
                 1.0 - after as f32 / before
             })
             .collect::<Vec<_>>()
@@ -162,8 +216,9 @@ struct Workspace {
 
 const OUTSIDE: u32 = u32::MAX;
 
-/// Above 1/DENSE_FRACTION of the grid still undecided after the first frame, the
-/// remaining frames are carved densely over the whole grid.
+/// Above 1/DENSE_FRACTION of the grid tracked, the first frame is carved densely over
+/// the whole grid (else only over the tracked voxels' columns); above 1/DENSE_FRACTION
+/// of the grid still undecided after the first frame, the remaining frames are too.
 const DENSE_FRACTION: usize = 4;
 
 impl Workspace {
@@ -179,7 +234,10 @@ impl Workspace {
         }
     }
 
-    /// `#Ŝ_{≥λ}` after adding the rendered silhouettes of `poses`.
+    /// `#Ŝ_{≥λ}` over the tracked voxels after adding the rendered silhouettes of `poses`
+    /// (eq. 14's "after" count). `dense_first`: carve the first frame over the whole grid
+    /// rather than over the tracked voxels' columns (the same count either way).
+    #[allow(clippy::too_many_arguments)]
     fn count_after(
         &mut self,
         grid: &OccupancyGrid,
@@ -188,18 +246,46 @@ impl Workspace {
         tracked: &Tracked,
         table: &HighConfidenceTable,
         poses: &[Pose],
+        dense_first: bool,
     ) -> usize {
+        if tracked.flat.is_empty() {
+            return 0;
+        }
         let m = poses.len() as u32;
         let spec = grid.spec();
-        // The far end of the trajectory first, over the whole grid with the carving
-        // kernel: it is the most informative frame and removes most tracked voxels.
+        // The far end of the trajectory first, with the carving kernel: it is the most
+        // informative frame and removes most tracked voxels.
         let last = &poses[poses.len() - 1];
-        let rect = grid_rect(spec, camera, last);
-        scene.render_mask_into(camera, last, rect, &mut self.mask, &mut self.scratch);
-        let frame = PreparedFrame::new(spec, camera, last, &self.mask);
-        self.seg0.fill(0);
-        self.vis0.fill(0);
-        carve_one(spec, &frame, &mut self.seg0, &mut self.vis0);
+        if dense_first {
+            // Over the whole grid.
+            let rect = grid_rect(spec, camera, last);
+            scene.render_mask_into(camera, last, rect, &mut self.mask, &mut self.scratch);
+            let frame = PreparedFrame::new(spec, camera, last, &self.mask);
+            self.seg0.fill(0);
+            self.vis0.fill(0);
+            carve_one(spec, &frame, &mut self.seg0, &mut self.vis0);
+        } else {
+            // Few tracked voxels (e.g. a small region): only the columns holding them,
+            // with the mask rendered only inside the pixels of their bounding box. The
+            // same kernel on the same columns: every tracked voxel gets the counts the
+            // dense carve gives it. (`seg0`, `vis0` are valid only on those columns.)
+            let rect = box_rect(spec, camera, last, tracked.lo, tracked.hi);
+            scene.render_mask_into(camera, last, rect, &mut self.mask, &mut self.scratch);
+            let frame = PreparedFrame::new(spec, camera, last, &self.mask);
+            let r = spec.resolution();
+            for &(a, b, len) in &tracked.columns {
+                let off = (a as usize * r + b as usize) * r;
+                self.seg0[off..off + len as usize].fill(0);
+                self.vis0[off..off + len as usize].fill(0);
+            }
+            carve_columns(
+                spec,
+                &frame,
+                &tracked.columns,
+                &mut self.seg0,
+                &mut self.vis0,
+            );
+        }
         let remaining = m - 1;
         self.alive.clear();
         for (k, &i) in tracked.flat.iter().enumerate() {
@@ -212,7 +298,8 @@ impl Workspace {
             }
         }
         let rest = &poses[..poses.len() - 1];
-        if self.alive.len() * DENSE_FRACTION > spec.voxel_count() {
+        // (Never after a sparse first frame: fewer voxels are alive than tracked.)
+        if dense_first && self.alive.len() * DENSE_FRACTION > spec.voxel_count() {
             // Many voxels still undecided (typically ones no view has seen yet): carving
             // the whole grid per frame with the SIMD kernel beats visiting them one by one.
             for pose in rest {
@@ -299,9 +386,36 @@ impl Workspace {
 /// of the cube (all voxel centres lie in their convex hull) when all are in front of the
 /// camera, else the whole image.
 fn grid_rect(spec: &crate::grid::GridSpec, camera: &PinholeCamera, cam2world: &Pose) -> PixelRect {
+    let o = spec.origin();
+    let far = o.map(|x| x + spec.size());
+    world_box_rect(camera, cam2world, o, far)
+}
+
+/// The pixels the centres of voxels `lo..=hi` (per axis) can project to: as
+/// [`grid_rect`], for the box of those voxels.
+fn box_rect(
+    spec: &crate::grid::GridSpec,
+    camera: &PinholeCamera,
+    cam2world: &Pose,
+    lo: [usize; 3],
+    hi: [usize; 3],
+) -> PixelRect {
+    let (o, h) = (spec.origin(), spec.voxel_size());
+    let near = std::array::from_fn(|k| o[k] + lo[k] as f64 * h);
+    let far = std::array::from_fn(|k| o[k] + (hi[k] + 1) as f64 * h);
+    world_box_rect(camera, cam2world, near, far)
+}
+
+/// The box of the projected corners of the world box `[near, far]`, one pixel wider on
+/// each side, when all corners are in front of the camera; else the whole image.
+fn world_box_rect(
+    camera: &PinholeCamera,
+    cam2world: &Pose,
+    near: [f64; 3],
+    far: [f64; 3],
+) -> PixelRect {
     let full = PixelRect::full(camera);
     let w2c = cam2world.inverse();
-    let o = spec.origin();
     let (mut umin, mut umax, mut vmin, mut vmax) = (
         f64::INFINITY,
         f64::NEG_INFINITY,
@@ -310,9 +424,9 @@ fn grid_rect(spec: &crate::grid::GridSpec, camera: &PinholeCamera, cam2world: &P
     );
     for k in 0..8 {
         let corner = nalgebra::Point3::new(
-            o[0] + if k & 1 == 0 { 0.0 } else { spec.size() },
-            o[1] + if k & 2 == 0 { 0.0 } else { spec.size() },
-            o[2] + if k & 4 == 0 { 0.0 } else { spec.size() },
+            if k & 1 == 0 { near[0] } else { far[0] },
+            if k & 2 == 0 { near[1] } else { far[1] },
+            if k & 4 == 0 { near[2] } else { far[2] },
         );
         let p = w2c.transform_point(&corner);
         if !(p.z > 1e-9) {
@@ -513,6 +627,125 @@ mod tests {
             vec![0.0; trajectories.len()]
         );
         assert!(score_views_in(&grid, &scene, &cam, &trajectories, 0.9, Some(&none[1..])).is_err());
+    }
+
+    /// The voxels whose centre lies within `radius` of `xy` in x–y: a vertical column
+    /// like the pipeline's target region.
+    fn column(spec: &GridSpec, xy: [f64; 2], radius: f64) -> Vec<bool> {
+        (0..spec.voxel_count())
+            .map(|i| {
+                let [a, b, c] = spec.unflatten(i);
+                let p = spec.voxel_center(a, b, c);
+                (p.x - xy[0]).hypot(p.y - xy[1]) <= radius
+            })
+            .collect()
+    }
+
+    /// A grid seen from one view, and the same after a ring of 24 more.
+    fn grids() -> (OccupancyGrid, OccupancyGrid, MeshScene, PinholeCamera) {
+        let (grid, scene, cam) = setup();
+        let seen = ring(24, 0.35, 0.3, 0.1);
+        let well_observed = integrated(&grid, &scene, &cam, &seen);
+        (grid, well_observed, scene, cam)
+    }
+
+    #[test]
+    fn small_region_scores_equal_the_definition() {
+        // A column around the box: few tracked voxels, so the first frame is carved only
+        // over their columns (the sparse first frame), on a grid seen once (many voxels
+        // undecided) and on a well-observed one.
+        let (once, well, scene, cam) = grids();
+        let trajectories: Vec<Vec<Pose>> = (0..10)
+            .map(|k| {
+                ring(
+                    4,
+                    0.25 + 0.02 * k as f64,
+                    0.15 + 0.03 * k as f64,
+                    0.5 * k as f64,
+                )
+            })
+            .collect();
+        for grid in [&once, &well] {
+            let spec = grid.spec();
+            let region = column(spec, [0.15, 0.13], 0.05);
+            let table = HighConfidenceTable::new(0.9, 1 << 12);
+            let tracked = Tracked::collect(grid, Some(&region), &table, 4);
+            assert!(!tracked.flat.is_empty());
+            assert!(
+                tracked.flat.len() * DENSE_FRACTION <= spec.voxel_count(),
+                "the sparse first frame must run: {} tracked",
+                tracked.flat.len()
+            );
+            let scores =
+                score_views_in(grid, &scene, &cam, &trajectories, 0.9, Some(&region)).unwrap();
+            for (k, t) in trajectories.iter().enumerate() {
+                assert_eq!(
+                    scores[k],
+                    reference_in(grid, &scene, &cam, t, 0.9, &region),
+                    "candidate {k}"
+                );
+            }
+            assert!(
+                scores.iter().any(|&s| s > 0.0),
+                "new views must carve something in the column: {scores:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn sparse_first_frame_counts_equal_the_dense_one() {
+        // Same tracked voxels, first frame carved over the whole grid or only over their
+        // columns: the same kernel on the same voxels, so the counts are identical
+        // (not only up to voxels on a pixel border), for columns anywhere in the grid and
+        // for trajectories whose far end sees the grid only in part or from inside its
+        // box (the whole-image rect).
+        let (once, well, scene, cam) = grids();
+        let mut trajectories: Vec<Vec<Pose>> = (0..24)
+            .map(|k| {
+                ring(
+                    1 + k % 5,
+                    0.12 + 0.02 * k as f64,
+                    0.05 + 0.025 * k as f64,
+                    0.7 * k as f64,
+                )
+            })
+            .collect();
+        // A camera inside the grid's box, looking sideways: some corners behind it.
+        trajectories.push(vec![Pose::look_at(
+            [0.05, 0.05, 0.1],
+            [0.3, 0.25, 0.02],
+            [0.0, 0.0, 1.0],
+        )
+        .unwrap()]);
+        for grid in [&once, &well] {
+            let spec = grid.spec();
+            let max_m = trajectories.iter().map(Vec::len).max().unwrap() as u32;
+            let table = HighConfidenceTable::new(0.9, 1 << 12);
+            for (xy, radius) in [
+                ([0.15, 0.13], 0.05),
+                ([0.15, 0.15], 0.08),
+                ([0.0, 0.0], 0.06),
+                ([0.3, 0.12], 0.03),
+                ([0.11, 0.2], 0.02),
+            ] {
+                let region = column(spec, xy, radius);
+                let tracked = Tracked::collect(grid, Some(&region), &table, max_m);
+                assert!(tracked.flat.len() * DENSE_FRACTION <= spec.voxel_count());
+                let mut ws = Workspace::new(grid, &cam);
+                let mut ws_sparse = Workspace::new(grid, &cam);
+                for (k, t) in trajectories.iter().enumerate() {
+                    let dense = ws.count_after(grid, &scene, &cam, &tracked, &table, t, true);
+                    // Stale buffers must not matter: pixels outside the rendered rect
+                    // and counts outside the carved columns are never read.
+                    ws_sparse.mask.fill(1);
+                    ws_sparse.seg0.fill(7);
+                    ws_sparse.vis0.fill(3);
+                    let sparse =
+                        ws_sparse.count_after(grid, &scene, &cam, &tracked, &table, t, false);
+                    assert_eq!(sparse, dense, "column {xy:?} r {radius}, candidate {k}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -422,20 +422,27 @@ def interpolate_sampled(
     then reduced to at most ``frames`` poses evenly spaced in arc length, the first
     (already seen) excluded and the last included: exactly the poses
     ``subsample(interpolate(a, b))`` picks, but only those are oriented, which is what
-    makes scoring hundreds of hypothetical paths (eq. 14) cheap."""
+    makes scoring hundreds of hypothetical paths (eq. 14) cheap.
+
+    All paths are built at once: NumPy over every path's eyes, with the same
+    floating-point operations per eye as :func:`interpolate` and
+    :func:`arc_length_samples` do for one path, so the poses are bit-identical to theirs.
+    The few scalar steps of each path (its angle and number of samples, by ``math``;
+    the arc-length search) stay a loop over the paths."""
     pa = _as_pose("pose_a", pose_a)
     pbs = _as_poses("poses_b", poses_b)
     step = _positive("step", step)
     if frames < 1:
         raise InvalidValueError(f"frames: must be >= 1, got {frames}")
-    center, target = sphere.center_array, sphere.target_array
-    up = np.array([0.0, 0.0, 1.0])
-    out = []
-    for pb in pbs:
-        eyes = _arc_eyes(pa[:3, 3], pb[:3, 3], center, step)
-        idx = arc_length_samples(eyes, frames)
-        out.append(_look_at_many(np.ascontiguousarray(eyes[idx]), target, up))
-    return out
+    eyes, counts = _arc_eyes_many(
+        pa[:3, 3].copy(), np.ascontiguousarray(pbs[:, :3, 3]), sphere.center_array, step
+    )
+    rows, kept = _arc_length_samples_many(eyes, counts, frames)
+    poses = _look_at_many(
+        np.ascontiguousarray(eyes[rows]), sphere.target_array, np.array([0.0, 0.0, 1.0])
+    )
+    ends = np.cumsum(kept).tolist()
+    return [poses[a:b] for a, b in zip([0, *ends[:-1]], ends, strict=True)]
 
 
 def arc_length_samples(points: npt.ArrayLike, n: int) -> npt.NDArray[np.intp]:
@@ -491,6 +498,109 @@ def _arc_eyes(ea: FloatArray, eb: FloatArray, center: FloatArray, step: float) -
     eyes[0] = ea
     eyes[-1] = eb
     return eyes
+
+
+def _arc_eyes_many(
+    ea: FloatArray, ebs: FloatArray, center: FloatArray, step: float
+) -> tuple[FloatArray, npt.NDArray[np.intp]]:
+    """:func:`_arc_eyes` from ``ea`` to every row of ``ebs`` ``(G, 3)`` at once: the
+    paths' eyes back to back ``(sum(counts), 3)`` and the number of eyes of each path.
+    Every array operation is the one :func:`_arc_eyes` does, element by element (so the
+    eyes are bit-identical); the scalar ones stay per path."""
+    g = ebs.shape[0]
+    # Identical eyes: a single eye, the start.
+    moving = ~(np.all(ebs == ea[None, :], axis=1) | (_norm(ebs - ea[None, :]) <= _MIN_DISTANCE))
+    counts = np.ones(g, dtype=np.intp)
+    ebm = ebs[moving]
+    m = ebm.shape[0]
+    if m == 0:
+        return np.repeat(ea[None, :], g, axis=0), counts
+    da, db = ea - center, ebm - center[None, :]
+    ra, rb = float(_norm(da)), _norm(db)
+    if ra <= _MIN_DISTANCE or bool(np.any(rb <= _MIN_DISTANCE)):
+        raise InvalidValueError("pose_a, pose_b: eyes must differ from sphere.center")
+    ua, ub = da / ra, db / rb[:, None]
+    sin_all = _norm(np.cross(ua[None, :], ub))
+    cos_all = np.empty(m)
+    omega = np.empty(m)
+    n = np.empty(m, dtype=np.intp)
+    kind = np.empty(m, dtype=np.int8)  # 0: arc, 1: radial, 2: antipodal
+    for i in range(m):
+        cos_o = float(np.dot(ua, ub[i]))
+        sin_o = float(sin_all[i])
+        om = math.atan2(sin_o, cos_o)
+        if sin_o > _PARALLEL:
+            kind[i] = 0
+        elif cos_o > 0.0:
+            kind[i], om = 1, 0.0
+        else:
+            kind[i], om = 2, math.pi
+        rbi = float(rb[i])
+        bound = math.hypot(rbi - ra, max(ra, rbi) * om)
+        cos_all[i], omega[i], n[i] = cos_o, om, max(1, math.ceil(bound / step))
+    w = np.zeros((m, 3))
+    arc = kind == 0
+    wa = ub[arc] - cos_all[arc][:, None] * ua[None, :]
+    w[arc] = wa / _norm(wa)[:, None]
+    if np.any(kind == 2):
+        # Antipodal: the start alone fixes the great circle (as in _arc_eyes).
+        axis = np.cross(ua, np.array([0.0, 0.0, 1.0]))
+        if float(_norm(axis)) < _PARALLEL:
+            axis = np.cross(ua, np.array([0.0, 1.0, 0.0]))
+        axis = axis / _norm(axis)
+        wp = np.cross(axis, ua)
+        w[kind == 2] = wp / _norm(wp)
+
+    # t = k / n for k = 0..n on each path, back to back.
+    owner = np.repeat(np.arange(m), n + 1)
+    first = np.cumsum(n + 1) - (n + 1)
+    k = np.arange(owner.shape[0]) - first[owner]
+    t = k.astype(np.float64) / n[owner].astype(np.float64)
+    tw = t * omega[owner]
+    dirs = np.cos(tw)[:, None] * ua[None, :] + np.sin(tw)[:, None] * w[owner]
+    radii = (1.0 - t) * ra + t * rb[owner]
+    moved = center[None, :] + radii[:, None] * dirs
+    moved[first] = ea
+    moved[first + n] = ebm
+
+    counts[moving] = n + 1
+    eyes = np.empty((int(counts.sum()), 3))
+    on_moving = np.repeat(moving, counts)
+    eyes[on_moving] = moved
+    eyes[~on_moving] = ea
+    return eyes, counts
+
+
+def _arc_length_samples_many(
+    points: FloatArray, counts: npt.NDArray[np.intp], n: int
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """:func:`arc_length_samples` of each polyline of ``points`` (``counts[g]`` points
+    each, back to back) at once: the kept rows of ``points`` (path by path) and how many
+    each path keeps. Bit-identical arc lengths: each path's cumulative sum runs over its
+    own segments from 0, as there."""
+    g = counts.shape[0]
+    first = np.cumsum(counts) - counts
+    owner = np.repeat(np.arange(g), counts)
+    k = np.arange(points.shape[0]) - first[owner]
+    seg = np.zeros((g, int(counts.max())))
+    later = k > 0
+    seg[owner[later], k[later]] = _norm(np.diff(points, axis=0))[later[1:]]
+    arc = np.cumsum(seg, axis=1)  # arc[p, 0] = 0; 0 + x = x, so the sums are the same
+    end = arc[np.arange(g), counts - 1]
+    want = end[:, None] * np.arange(1, n + 1)[None, :] / n
+    idx = np.empty((g, n), dtype=np.intp)
+    query = want - 1e-12
+    for p, c in enumerate(counts.tolist()):
+        idx[p] = arc[p, :c].searchsorted(query[p])
+    idx = np.clip(idx, 1, (counts - 1)[:, None])
+    # One point, or no length: only the last point.
+    single = end <= 0
+    idx[single] = (counts - 1)[single, None]
+    # The indices grow along each row: np.unique drops the repeats.
+    keep = np.ones((g, n), dtype=bool)
+    keep[:, 1:] = idx[:, 1:] != idx[:, :-1]
+    rows = (first[:, None] + idx)[keep]
+    return rows, keep.sum(axis=1)
 
 
 def path_length(poses: npt.ArrayLike) -> float:
