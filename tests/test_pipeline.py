@@ -117,7 +117,7 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
     # top-scoring grasp wins, and from then on the closest one.
     model = box_model(tmp_path, BOX)
     script = [
-        [_candidate(0.05, 0.9)],  # at p0
+        # at p0 nothing is planned: with gamma2 = 0 its target would steer nothing
         [_candidate(0.06, 0.5), _candidate(0.25, 0.95)],  # near p0's target / best
         [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],  # best / near the last target
         [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],  # final
@@ -129,8 +129,10 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
         calls = iter(script)
         pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
         result = pipeline.plan()
-    targets = [w["target"]["position"][0] for w in result.extra["waypoints"]]
-    assert targets == pytest.approx([0.05, 0.25, 0.24])
+    waypoints = result.extra["waypoints"]
+    assert waypoints[0]["target"] is None and waypoints[0]["grasp_candidates"] is None
+    targets = [w["target"]["position"][0] for w in waypoints[1:]]
+    assert targets == pytest.approx([0.25, 0.24])
     # The view scorer sees the target of eq. 16 (for the oracle's target column), but
     # not p0's, which is unreliable (gamma2 = 0).
     assert views.targets[0] is None
@@ -139,12 +141,35 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
     assert result.extra["best_grasp"]["position"][0] == pytest.approx(0.07)
 
 
+def test_with_gamma2_at_p0_the_grasp_at_p0_is_planned_and_anchors_eq16(tmp_path: Path) -> None:
+    # With gamma2_first > 0 the grasp planned at p0 steers the first view, so it is
+    # planned, and eq. 16 keeps the closest grasp from then on.
+    model = box_model(tmp_path, BOX)
+    script = [
+        [_candidate(0.05, 0.9)],  # at p0
+        [_candidate(0.06, 0.5), _candidate(0.25, 0.95)],
+        [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],
+        [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],  # final
+    ]
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        views = _ScriptedViews()
+        pipeline = build_pipeline(RunConfig(gamma2_first=0.35), world, view_scorer=views)
+        calls = iter(script)
+        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
+        result = pipeline.plan()
+    targets = [w["target"]["position"][0] for w in result.extra["waypoints"]]
+    assert targets == pytest.approx([0.05, 0.06, 0.07])
+    assert [t[0] for t in views.targets] == pytest.approx([0.05, 0.06, 0.07])
+    assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.07)
+
+
 def test_final_grasp_best_takes_the_highest_score_on_the_last_grid(tmp_path: Path) -> None:
-    # Same script as above: eq. 16 would keep 0.24 (closest to the last target), the
+    # Eq. 16 would keep 0.24 (closest to the last target), the
     # "best" rule takes 0.07 (score 0.99); the views are planned the same way.
     model = box_model(tmp_path, BOX)
     script = [
-        [_candidate(0.05, 0.9)],
+        # (nothing is planned at p0: gamma2_first = 0)
         [_candidate(0.06, 0.5), _candidate(0.25, 0.95)],
         [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],
         [_candidate(0.24, 0.6), _candidate(0.07, 0.99)],
@@ -171,7 +196,7 @@ def test_an_unconfident_final_grasp_takes_more_view_waypoints(
     # 0.22 at 0.99; at most confirm_waypoints = 2 extra waypoints.
     model = box_model(tmp_path, BOX)
     script = [
-        [_candidate(0.05, 0.9)],
+        # (nothing is planned at p0: gamma2_first = 0)
         [_candidate(0.25, 0.95)],
         [_candidate(0.24, 0.9)],
         [_candidate(0.24, 0.6)],  # final grid
@@ -203,7 +228,7 @@ def test_no_final_grasp_takes_a_view_waypoint_only_when_confirming(
     # phase without a grasp; with confirmation on, one more waypoint finds 0.23.
     model = box_model(tmp_path, BOX)
     script: list[list[GraspCandidate]] = [
-        [_candidate(0.05, 0.9)],
+        # (nothing is planned at p0: gamma2_first = 0)
         [_candidate(0.25, 0.95)],
         [_candidate(0.24, 0.9)],
         [],  # final grid

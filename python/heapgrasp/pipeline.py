@@ -280,7 +280,7 @@ class Pipeline:
     def _view_step(
         self,
         phase: _PhaseLog,
-        cands: list[GraspCandidate],
+        cands: list[GraspCandidate] | None,
         target: GraspCandidate | None,
         gamma2: float,
         t0: float,
@@ -289,8 +289,9 @@ class Pipeline:
         trusted: bool,
     ) -> None:
         """Eq. 18-19 from the current pose toward ``target``, then the move there with
-        continuous capture; ``t0``/``t1``: when grasp planning began and ended.
-        ``trusted``: the target may steer the view scores (the oracle's target column)."""
+        continuous capture; ``cands``: the grasps planned here (None: not planned);
+        ``t0``/``t1``: when grasp planning began and ended. ``trusted``: the target may
+        steer the view scores (the oracle's target column)."""
         cfg = self.config
         assert self.view_scorer is not None
         assert isinstance(self.perception, SilhouettePerception)
@@ -329,7 +330,7 @@ class Pipeline:
                 "view_score_max": float(scores.max()),
                 "gamma2": gamma2,
                 "target": _candidate_record(target),
-                "grasp_candidates": len(cands),
+                "grasp_candidates": None if cands is None else len(cands),
                 "frames": len(cap),
                 "duration_s": duration,
                 "grasp_planning_s": t1 - t0,
@@ -362,10 +363,16 @@ class Pipeline:
         if self.adaptive:
             for ell in range(cfg.L):
                 t0 = time.perf_counter()
-                cands = self.grasp_candidates(final=False)
-                # No candidate at this waypoint: no target, and eq. 18 uses s alone.
-                target = select_target(cands, target, cfg.gamma1)
                 gamma2 = cfg.gamma2_first if ell == 0 else cfg.gamma2
+                if ell == 0 and gamma2 == 0.0:
+                    # §VI-B: with gamma2 = 0 the grasp planned at p0 steers nothing (eq.
+                    # 18 uses s alone, the oracle counts the whole grid) and anchors no
+                    # later target (below), so it is not planned at all.
+                    cands = None
+                else:
+                    cands = self.grasp_candidates(final=False)
+                    # No candidate at this waypoint: no target, and eq. 18 uses s alone.
+                    target = select_target(cands, target, cfg.gamma1)
                 # A target planned where gamma2 = 0 is unreliable (§VI-B): no region.
                 self._view_step(
                     phase, cands, target, gamma2, t0, time.perf_counter(), trusted=gamma2 > 0
