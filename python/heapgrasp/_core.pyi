@@ -28,6 +28,7 @@ __all__ = [
     "TSDFVolume",
     "UnknownMeshError",
     "__version__",
+    "antipodal_grasps",
     "gaussian_filter3d",
     "kernel_level",
     "maximum_filter3d",
