@@ -36,6 +36,7 @@ def test_defaults_are_table_one() -> None:
         ({"target_radius": -0.05}, r"target_radius: must be in \[0.0, 1.0\]; got -0.05"),
         ({"circle_closed": 1}, "circle_closed must be of type bool"),
         ({"final_grasp": "nearest"}, "final_grasp: must be one of target, best"),
+        ({"target_region": "box"}, "target_region: must be one of column, gripper; got 'box'"),
         ({"confirm_below": 1.2}, r"confirm_below: must be in \[0.0, 1.0\]; got 1.2"),
         ({"confirm_waypoints": -1}, "confirm_waypoints: must be an integer >= 0; got -1"),
         ({"lamda": 0.9}, "unknown parameter 'lamda'"),
@@ -90,5 +91,7 @@ def test_the_oracle_scores_with_the_configured_number_of_silhouettes() -> None:
 
     scorer = make_view_scorer(RunConfig(oracle_frames=40, target_radius=0.05))
     assert isinstance(scorer, OracleViewScorer) and scorer.frames_per_candidate == 40
-    assert scorer.target_radius == 0.05
+    assert scorer.target_radius == 0.05 and scorer.target_region == "column"
+    gripper = make_view_scorer(RunConfig(target_region="gripper"))
+    assert isinstance(gripper, OracleViewScorer) and gripper.target_region == "gripper"
     assert make_view_scorer(RunConfig(method="no-vp", oracle_frames=40)) is None

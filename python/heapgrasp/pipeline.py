@@ -515,7 +515,9 @@ def make_view_scorer(config: RunConfig) -> ViewScorer | None:
         return None
     if config.view_planner == "oracle":
         return OracleViewScorer(
-            frames_per_candidate=config.oracle_frames, target_radius=config.target_radius
+            frames_per_candidate=config.oracle_frames,
+            target_radius=config.target_radius,
+            target_region=config.target_region,
         )
     from heapgrasp.viewplan_network import NetworkViewScorer
 

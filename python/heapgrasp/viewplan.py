@@ -48,6 +48,7 @@ __all__ = [
     "ViewContext",
     "ViewScorer",
     "fixed_waypoints",
+    "gripper_region",
     "subsample_path",
     "target_region",
 ]
@@ -114,6 +115,44 @@ def target_region(
     return np.ascontiguousarray(np.broadcast_to(column[:, :, None], (r, r, r)))
 
 
+#: Extent of :func:`gripper_region` in the target's TCP frame (m): half-width across the
+#: fingers (x), half-length along the closing axis (y), and the range along the approach
+#: (z) from behind the palm's front to below the fingertips.
+GRIPPER_REGION_HALF_X = 0.03
+GRIPPER_REGION_HALF_Y = 0.07
+GRIPPER_REGION_Z = (-0.06, 0.03)
+
+
+def gripper_region(grid: OccupancyGrid, pose: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+    """The voxels whose centre lies in the box the gripper sweeps at a target grasp
+    ``pose`` (4 x 4, TCP to world; TCP z the approach, fingers closing along y): the
+    fingers at their widest opening, the contacts and what lies just below the
+    fingertips (:data:`GRIPPER_REGION_HALF_X`, :data:`GRIPPER_REGION_HALF_Y`,
+    :data:`GRIPPER_REGION_Z`), as an ``(R, R, R)`` mask."""
+    t = np.asarray(pose, dtype=np.float64)
+    if t.shape != (4, 4) or not np.isfinite(t).all():
+        raise ValueError(f"pose must be a finite 4 x 4 matrix, got shape {t.shape}")
+    r = grid.resolution
+    centres = (np.arange(r) + 0.5) * grid.voxel_size
+    axes = [centres + o - p for o, p in zip(grid.origin, t[:3, 3], strict=True)]
+    # TCP coordinates of every voxel centre: u_j = sum_w d_w R[w, j].
+    rot = t[:3, :3]
+    u = [
+        axes[0][:, None, None] * rot[0, j]
+        + axes[1][None, :, None] * rot[1, j]
+        + axes[2][None, None, :] * rot[2, j]
+        for j in range(3)
+    ]
+    z0, z1 = GRIPPER_REGION_Z
+    inside = (
+        (np.abs(u[0]) <= GRIPPER_REGION_HALF_X)
+        & (np.abs(u[1]) <= GRIPPER_REGION_HALF_Y)
+        & (u[2] >= z0)
+        & (u[2] <= z1)
+    )
+    return np.ascontiguousarray(inside)
+
+
 class OracleViewScorer:
     """Exact eq. 14 scores from the true meshes (see the module docstring).
 
@@ -128,12 +167,20 @@ class OracleViewScorer:
         When > 0 and the context has a target grasp, eq. 14 is counted on the column of
         this radius (m) around it (:func:`target_region`); 0 is the paper's eq. 14 over
         the whole grid.
+    target_region
+        ``"column"`` (the column of ``target_radius``) or ``"gripper"`` (the box the
+        gripper sweeps at the target grasp, :func:`gripper_region`); either applies only
+        when ``target_radius`` > 0 and the context has a target.
     """
 
     name = "oracle"
 
     def __init__(
-        self, frames_per_candidate: int = 10, step: float = 0.01, target_radius: float = 0.0
+        self,
+        frames_per_candidate: int = 10,
+        step: float = 0.01,
+        target_radius: float = 0.0,
+        target_region: str = "column",
     ) -> None:
         if frames_per_candidate < 1:
             raise ValueError(f"frames_per_candidate must be >= 1, got {frames_per_candidate}")
@@ -144,12 +191,20 @@ class OracleViewScorer:
         self.frames_per_candidate = int(frames_per_candidate)
         self.step = float(step)
         self.target_radius = float(target_radius)
+        if target_region not in ("column", "gripper"):
+            raise ValueError(
+                f"target_region must be 'column' or 'gripper', got {target_region!r}"
+            )
+        self.target_region = target_region
 
     def region(self, ctx: ViewContext) -> npt.NDArray[np.bool_] | None:
-        """The voxels eq. 14 is counted on: the target column, or None (all)."""
+        """The voxels eq. 14 is counted on: the target's column or gripper box, or None
+        (all)."""
         if self.target_radius <= 0 or ctx.target is None:
             return None
         target = np.asarray(ctx.target, dtype=np.float64)
+        if self.target_region == "gripper":
+            return gripper_region(ctx.grid, target)
         return target_region(ctx.grid, target[:3, 3], self.target_radius)
 
     def trajectories(self, ctx: ViewContext) -> list[F64]:
