@@ -88,10 +88,65 @@ def _solve3(mat: F64, rhs: F64) -> F64:
     return x
 
 
+#: The contact plane is fitted on the pad widened by this many cells.
+_FIT_MARGIN = 1
+
+
+def _cells(lo: float, hi: float, v: float) -> tuple[int, int]:
+    """Lattice offsets (inclusive range) whose cell centre lies in ``[lo, hi]``."""
+    return math.ceil(lo / v - _EPS), math.floor(hi / v + _EPS)
+
+
+@dataclass(frozen=True)
+class Cells:
+    """The gripper's boxes as lattice offsets (inclusive ranges) for a voxel size."""
+
+    x_pad: tuple[int, int]  # finger width
+    x_clear: tuple[int, int]  # finger width plus clearance
+    x_fit: tuple[int, int]  # finger width plus the fit margin
+    z_contact: tuple[int, int]  # pad length: palm front to fingertip
+    z_thin: tuple[int, int]  # tip part of the finger
+    z_thick: tuple[int, int]  # base part, swept from the pre-grasp pose
+    n_thin: int  # rows a finger tip needs at least
+    n_thick: int
+    palm: tuple[tuple[tuple[int, int], tuple[int, int], tuple[int, int]], ...]
+
+
+def cells(pl: Any, v: float) -> Cells:
+    """The gripper's boxes in lattice cells (the core's ``GripperCells::from_params``)."""
+    g = pl.gripper
+    clr = pl.clearance
+    pre = pl.pregrasp_distance
+    half_w = 0.5 * g.finger_width
+    x_pad = _cells(-half_w, half_w, v)
+    palm = tuple(
+        (
+            _cells(-hx - clr, hx + clr, v),
+            _cells(-hy - clr, hy + clr, v),
+            _cells(z0 - clr, z1 + clr, v),
+        )
+        for (hx, hy), z0, z1 in (
+            (g.palm_front_half, g.palm_split, g.palm_front),
+            (g.palm_back_half, g.palm_back - pre, g.palm_split),
+        )
+    )
+    return Cells(
+        x_pad=x_pad,
+        x_clear=_cells(-half_w - clr, half_w + clr, v),
+        x_fit=(x_pad[0] - _FIT_MARGIN, x_pad[1] + _FIT_MARGIN),
+        z_contact=_cells(g.palm_front, g.finger_tip, v),
+        z_thin=_cells(g.finger_split, g.finger_tip + clr, v),
+        z_thick=_cells(g.finger_base - pre - clr, g.finger_split, v),
+        n_thin=max(1, math.floor(g.tip_thickness / v + _EPS)),
+        n_thick=max(1, math.floor(g.base_thickness / v + _EPS)),
+        palm=palm,
+    )
+
+
 def search(pl: Any, scene: Any) -> tuple[F64, I64, F64]:
     """Every orientation of ``pl`` at every candidate of ``scene`` (the planner's
     ``_scene``): each candidate's best quality, orientation and width."""
-    cells = pl._cells(scene.v)
+    cells_ = cells(pl, scene.v)
     occ = scene.occ
     side = occ.copy()
     side[1:-1, 1:-1, :] = False
@@ -107,7 +162,7 @@ def search(pl: Any, scene: Any) -> tuple[F64, I64, F64]:
     best_k = np.zeros(len(scene.cand), dtype=np.int64)
     best_w = np.zeros(len(scene.cand))
     for k, rot in enumerate(pl.rotations):
-        idx, q, w = evaluate(pl, scene, cells, rot, float(pl._tilt[k]))
+        idx, q, w = evaluate(pl, scene, cells_, rot, float(pl._tilt[k]))
         better = q > best_q[idx]
         idx, q, w = idx[better], q[better], w[better]
         best_q[idx] = q

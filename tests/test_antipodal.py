@@ -328,7 +328,7 @@ def _core_args(planner: AntipodalPlanner) -> dict:
 
     def fake(*args: object) -> tuple:
         names = ("occupied", "gradient", "labels", "centroids", "candidates")
-        names += ("rotations", "tilts", "cells", "params")
+        names += ("rotations", "tilts", "params")
         captured.update(zip(names, args, strict=True))
         return (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0))
 
@@ -348,7 +348,6 @@ def _core_args(planner: AntipodalPlanner) -> dict:
     [
         (lambda a: a["params"].pop("min_depth"), 'params: missing key "min_depth"'),
         (lambda a: a["params"].update(voxel_size=float("nan")), "voxel_size"),
-        (lambda a: a["cells"].update(palm=((1, 2),)), "palm"),
         (lambda a: a.update(labels=a["labels"].astype(np.int64)), "labels: expected dtype int32"),
         (lambda a: a["labels"].__setitem__((0, 0, 0), 99), "labels"),
         (lambda a: a["candidates"].__setitem__((0, 0), -1), "candidates"),

@@ -3,58 +3,10 @@
 //! planner's 72 orientations (top-down and 30° tilts, 8 azimuths, 8 yaws).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use heapgrasp_core::antipodal::{best_grasps, AntipodalParams, AntipodalScene, GripperCells};
+use heapgrasp_core::antipodal::{best_grasps, AntipodalParams, AntipodalScene};
 
 const R: usize = 40;
 const V: f64 = 0.30 / R as f64;
-
-/// `AntipodalPlanner()`'s boxes at 7.5 mm voxels (`planner._cells(0.0075)`).
-fn cells() -> GripperCells {
-    GripperCells {
-        x_pad: (-1, 1),
-        x_clear: (-1, 1),
-        x_fit: (-2, 2),
-        z_contact: (-5, 0),
-        z_thin: (-2, 1),
-        z_thick: (-13, -3),
-        n_thin: 2,
-        n_thick: 3,
-        palm: [
-            [(-3, 3), (-13, 13), (-10, -5)],
-            [(-4, 4), (-14, 14), (-24, -10)],
-        ],
-    }
-}
-
-fn params() -> AntipodalParams {
-    AntipodalParams {
-        voxel_size: V,
-        origin_z: 0.0,
-        max_opening: 0.08,
-        opening_margin: 0.01,
-        clearance: 0.003,
-        finger_width: 0.021,
-        finger_tip: 0.0072,
-        finger_base: -0.0466,
-        finger_split: -0.02,
-        tip_thickness: 0.016,
-        base_thickness: 0.026,
-        palm_front: -0.039,
-        palm_split: -0.075,
-        palm_back: -0.131,
-        palm_front_half: [0.022, 0.101],
-        palm_back_half: [0.032, 0.104],
-        pregrasp_distance: 0.05,
-        table_z: 0.0,
-        table_clearance: 0.005,
-        min_depth: 0.012,
-        target_depth: 0.022,
-        min_patch: 2,
-        min_contact_height: 0.0075,
-        ledge_factor: 0.4,
-        friction_angle: 35f64.to_radians(),
-    }
-}
 
 /// `grasp_orientations((0, 30°), 8, 8)`: TCP-to-world rotations (columns x, y, z).
 fn orientations() -> (Vec<[[f64; 3]; 3]>, Vec<f64>) {
@@ -162,15 +114,15 @@ fn search(c: &mut Criterion) {
         candidates: &cand,
     };
     let (rots, tilts) = orientations();
-    let (cells, params) = (cells(), params());
-    let found = best_grasps(&scene, &cells, &params, &rots, &tilts).expect("valid input");
+    let params = AntipodalParams::panda(V, 0.0);
+    let found = best_grasps(&scene, &params, &rots, &tilts).expect("valid input");
     assert!(
         found.quality.iter().any(|&q| q > 0.0),
         "the fixture has grasps"
     );
     let name = format!("antipodal_40_pile_{}cand_72rot", cand.len());
     c.bench_function(&name, |b| {
-        b.iter(|| best_grasps(&scene, &cells, &params, &rots, &tilts))
+        b.iter(|| best_grasps(&scene, &params, &rots, &tilts))
     });
 }
 

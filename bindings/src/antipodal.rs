@@ -1,6 +1,6 @@
 //! `antipodal_grasps`.
 
-use heapgrasp_core::antipodal::{self, AntipodalParams, AntipodalScene, CellRange, GripperCells};
+use heapgrasp_core::antipodal::{self, AntipodalParams, AntipodalScene};
 use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -32,29 +32,6 @@ fn pair<T: for<'a, 'py> FromPyObject<'a, 'py>>(
 ) -> PyResult<(T, T)> {
     item(d, dict, key)?.extract::<(T, T)>().map_err(|_| {
         InvalidValueError::new_err(format!("{dict}[{key:?}]: expected a pair of numbers"))
-    })
-}
-
-fn gripper_cells(d: &Bound<'_, PyDict>) -> PyResult<GripperCells> {
-    let palm: Vec<[CellRange; 3]> = item(d, "cells", "palm")?
-        .extract::<Vec<(CellRange, CellRange, CellRange)>>()
-        .map_err(|_| InvalidValueError::new_err("cells[\"palm\"]: expected boxes of 3 ranges"))?
-        .into_iter()
-        .map(|(x, y, z)| [x, y, z])
-        .collect();
-    let palm: [[CellRange; 3]; 2] = palm.try_into().map_err(|_| {
-        InvalidValueError::new_err("cells[\"palm\"]: expected 2 boxes (front, back)")
-    })?;
-    Ok(GripperCells {
-        x_pad: pair(d, "cells", "x_pad")?,
-        x_clear: pair(d, "cells", "x_clear")?,
-        x_fit: pair(d, "cells", "x_fit")?,
-        z_contact: pair(d, "cells", "z_contact")?,
-        z_thin: pair(d, "cells", "z_thin")?,
-        z_thick: pair(d, "cells", "z_thick")?,
-        n_thin: int(d, "cells", "n_thin")?,
-        n_thick: int(d, "cells", "n_thick")?,
-        palm,
     })
 }
 
@@ -93,7 +70,7 @@ fn planner_params(d: &Bound<'_, PyDict>) -> PyResult<AntipodalParams> {
 /// Each candidate's best antipodal grasp over `rotations` (K, 3, 3) with `tilts` (K,):
 /// (quality float64 (N,), orientation index int64 (N,), width float64 (N,)).
 #[pyfunction]
-#[pyo3(signature = (occupied, gradient, labels, centroids, candidates, rotations, tilts, cells, params))]
+#[pyo3(signature = (occupied, gradient, labels, centroids, candidates, rotations, tilts, params))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 pub fn antipodal_grasps<'py>(
     py: Python<'py>,
@@ -104,7 +81,6 @@ pub fn antipodal_grasps<'py>(
     candidates: &Bound<'py, PyAny>,
     rotations: &Bound<'py, PyAny>,
     tilts: &Bound<'py, PyAny>,
-    cells: &Bound<'py, PyDict>,
     params: &Bound<'py, PyDict>,
 ) -> PyResult<(
     Bound<'py, PyArray1<f64>>,
@@ -158,7 +134,6 @@ pub fn antipodal_grasps<'py>(
         .chunks_exact(9)
         .map(|m| [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]])
         .collect();
-    let cells = gripper_cells(cells)?;
     let params = planner_params(params)?;
     let (occ_s, grad_s, lab_s, tilt_s) = (
         occ.as_slice(),
@@ -175,7 +150,7 @@ pub fn antipodal_grasps<'py>(
             centroids: &cen_rows,
             candidates: &cand_idx,
         };
-        antipodal::best_grasps(&scene, &cells, &params, &rots, tilt_s)
+        antipodal::best_grasps(&scene, &params, &rots, tilt_s)
     })?;
     let orientation: Vec<i64> = best.orientation.into_iter().map(|k| k as i64).collect();
     Ok((

@@ -213,7 +213,6 @@ def antipodal_grasps(
     candidates: npt.NDArray[np.int64],
     rotations: _F64,
     tilts: _F64,
-    cells: Mapping[str, Any],
     params: Mapping[str, Any],
 ) -> tuple[_F64, npt.NDArray[np.int64], _F64]:
     """Each candidate's best antipodal grasp over every TCP orientation.
@@ -221,12 +220,10 @@ def antipodal_grasps(
     ``occupied`` (R, R, R) bool; ``gradient`` (3, R, R, R) of the smoothed occupancy;
     ``labels`` (R, R, R) int32 blob labels indexing ``centroids`` (L, 3) (metres from the
     grid origin); ``candidates`` (N, 3) voxel indices of the TCPs; ``rotations``
-    (K, 3, 3) TCP-to-world with their ``tilts`` (K,). ``cells``: the gripper's boxes in
-    lattice cells (``x_pad``, ``x_clear``, ``x_fit``, ``z_contact``, ``z_thin``,
-    ``z_thick`` as inclusive ``(lo, hi)``; ``n_thin``, ``n_thick``; ``palm``: two boxes of
-    three ranges). ``params``: the gripper geometry and thresholds of
-    ``AntipodalPlanner`` by name. Returns per candidate the best quality (0: none), the
-    index of its orientation and its width (m).
+    (K, 3, 3) TCP-to-world with their ``tilts`` (K,). ``params``: the voxel size, the
+    grid's ``origin_z``, the gripper geometry and the thresholds of ``AntipodalPlanner``
+    by name (the core puts the gripper on the lattice). Returns per candidate the best
+    quality (0: none), the index of its orientation and its width (m).
     """
 
 def gaussian_filter3d(volume: _F32, sigma: float) -> _F32:

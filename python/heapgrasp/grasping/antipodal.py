@@ -47,9 +47,9 @@ next to occupied voxels) and orientation:
 
 The search over orientations and candidates runs in the Rust core
 (``heapgrasp._core.antipodal_grasps``, module ``antipodal`` of ``heapgrasp-core``,
-orientations in parallel); this module prepares its input (blobs, their centroids, the
-smoothed occupancy's gradient, the candidate TCPs, the gripper in lattice cells) and
-turns its output into grasp volumes. The NumPy implementation it replaced is the test
+orientations in parallel, the gripper put on the lattice there); this module prepares
+its input (blobs, their centroids, the smoothed occupancy's gradient, the candidate
+TCPs, the gripper's geometry) and turns its output into grasp volumes. The NumPy implementation it replaced is the test
 reference (``tests/reference_antipodal.py``); the two agree bit for bit.
 
 Blobs of occupied voxels that do not reach down to the table (``support_height``) are
@@ -71,7 +71,6 @@ is the threshold calibrated on held-out simulated scenes (see the class docstrin
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -92,9 +91,8 @@ I64 = npt.NDArray[np.int64]
 Bool = npt.NDArray[np.bool_]
 
 _EPS = 1e-9
-#: The contact plane is fitted on the pad widened by this many cells (the search's
-#: other constants live beside it in the core: ``heapgrasp-core`` ``antipodal``).
-_FIT_MARGIN = 1
+#: The search's constants (and the gripper's boxes in lattice cells) live in the core:
+#: ``heapgrasp-core``'s ``antipodal`` module.
 
 
 def _finite(name: str, value: float) -> float:
@@ -122,11 +120,6 @@ def _count(name: str, value: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
         raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
     return int(value)
-
-
-def _cells(lo: float, hi: float, v: float) -> tuple[int, int]:
-    """Lattice offsets (inclusive range) whose cell centre lies in ``[lo, hi]``."""
-    return math.ceil(lo / v - _EPS), math.floor(hi / v + _EPS)
 
 
 @dataclass(frozen=True)
@@ -254,21 +247,6 @@ class _Scene:
     cand: I64  # (N, 3) voxel indices of candidate TCPs
     labels: npt.NDArray[np.int32]
     centroids: F64  # (n_labels + 1, 3) relative to the grid origin
-
-
-@dataclass(frozen=True)
-class _Cells:
-    """The gripper's boxes as lattice offsets (inclusive ranges) for a voxel size."""
-
-    x_pad: tuple[int, int]  # finger width
-    x_clear: tuple[int, int]  # finger width plus clearance
-    x_fit: tuple[int, int]  # finger width plus the fit margin
-    z_contact: tuple[int, int]  # pad length: palm front to fingertip
-    z_thin: tuple[int, int]  # tip part of the finger
-    z_thick: tuple[int, int]  # base part, swept from the pre-grasp pose
-    n_thin: int  # rows a finger tip needs at least
-    n_thick: int
-    palm: tuple[tuple[tuple[int, int], tuple[int, int], tuple[int, int]], ...]
 
 
 class AntipodalPlanner:
@@ -461,7 +439,6 @@ class AntipodalPlanner:
     def _search(self, scene: _Scene) -> tuple[F64, I64, F64]:
         """Every orientation at every candidate (the Rust core's
         ``antipodal_grasps``): each candidate's best quality, orientation and width."""
-        cells = self._cells(scene.v)
         g = self.gripper
         params = {
             "voxel_size": scene.v,
@@ -498,40 +475,10 @@ class AntipodalPlanner:
             np.ascontiguousarray(scene.cand, dtype=np.int64),
             self._rotations,
             self._tilt,
-            dataclasses.asdict(cells),
             params,
         )
 
     # ------------------------------------------------------------------ set-up
-    def _cells(self, v: float) -> _Cells:
-        g = self.gripper
-        clr = self.clearance
-        pre = self.pregrasp_distance
-        half_w = 0.5 * g.finger_width
-        x_pad = _cells(-half_w, half_w, v)
-        palm = tuple(
-            (
-                _cells(-hx - clr, hx + clr, v),
-                _cells(-hy - clr, hy + clr, v),
-                _cells(z0 - clr, z1 + clr, v),
-            )
-            for (hx, hy), z0, z1 in (
-                (g.palm_front_half, g.palm_split, g.palm_front),
-                (g.palm_back_half, g.palm_back - pre, g.palm_split),
-            )
-        )
-        return _Cells(
-            x_pad=x_pad,
-            x_clear=_cells(-half_w - clr, half_w + clr, v),
-            x_fit=(x_pad[0] - _FIT_MARGIN, x_pad[1] + _FIT_MARGIN),
-            z_contact=_cells(g.palm_front, g.finger_tip, v),
-            z_thin=_cells(g.finger_split, g.finger_tip + clr, v),
-            z_thick=_cells(g.finger_base - pre - clr, g.finger_split, v),
-            n_thin=max(1, math.floor(g.tip_thickness / v + _EPS)),
-            n_thick=max(1, math.floor(g.base_thickness / v + _EPS)),
-            palm=palm,
-        )
-
     def _scene(self, occ: Bool, frame: GridFrame) -> _Scene | None:
         v = frame.voxel_size
         r = frame.resolution

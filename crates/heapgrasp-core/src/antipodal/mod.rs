@@ -3,8 +3,8 @@
 //! high-confidence grid `Ŝ≥λ`, written as the per-voxel grasp volumes of eq. 11).
 //!
 //! The Python planner prepares the scene (connected blobs, their centroids, the
-//! smoothed occupancy's gradient, the candidate TCPs) and the gripper's boxes in lattice
-//! cells; [`best_grasps`] then tries every TCP orientation at every candidate and keeps
+//! smoothed occupancy's gradient, the candidate TCPs); [`best_grasps`] puts the gripper
+//! on the lattice ([`GripperCells::from_params`]) and tries every TCP orientation at every candidate and keeps
 //! each candidate's best grasp. For one orientation (see the Python module docstring for
 //! the method in words):
 //!
@@ -56,6 +56,52 @@ pub struct GripperCells {
     pub n_thick: i64,
     /// The palm's two boxes (front and back part, swept back), each `(x, y, z)` ranges.
     pub palm: [[CellRange; 3]; 2],
+}
+
+/// Widening (cells) of the finger pad over which the contact plane is fitted.
+const FIT_MARGIN: i64 = 1;
+
+/// Lattice offsets (inclusive range) whose cell centre lies in `[lo, hi]`.
+fn cell_range(lo: f64, hi: f64, v: f64) -> CellRange {
+    (
+        ceil_fast(lo / v - EPS) as i64,
+        floor_fast(hi / v + EPS) as i64,
+    )
+}
+
+impl GripperCells {
+    /// The boxes of `p`'s gripper on a lattice of `p.voxel_size` cells: the finger pad
+    /// and its clearances across, the pad, tip and swept base along the approach, the
+    /// rows a finger needs, and the palm (front and back part, swept back to the
+    /// pre-grasp pose), each widened by the clearance.
+    pub fn from_params(p: &AntipodalParams) -> Self {
+        let v = p.voxel_size;
+        let clr = p.clearance;
+        let pre = p.pregrasp_distance;
+        let half_w = 0.5 * p.finger_width;
+        let x_pad = cell_range(-half_w, half_w, v);
+        let palm_box = |half: [f64; 2], z0: f64, z1: f64| {
+            [
+                cell_range(-half[0] - clr, half[0] + clr, v),
+                cell_range(-half[1] - clr, half[1] + clr, v),
+                cell_range(z0 - clr, z1 + clr, v),
+            ]
+        };
+        Self {
+            x_pad,
+            x_clear: cell_range(-half_w - clr, half_w + clr, v),
+            x_fit: (x_pad.0 - FIT_MARGIN, x_pad.1 + FIT_MARGIN),
+            z_contact: cell_range(p.palm_front, p.finger_tip, v),
+            z_thin: cell_range(p.finger_split, p.finger_tip + clr, v),
+            z_thick: cell_range(p.finger_base - pre - clr, p.finger_split, v),
+            n_thin: (floor_fast(p.tip_thickness / v + EPS) as i64).max(1),
+            n_thick: (floor_fast(p.base_thickness / v + EPS) as i64).max(1),
+            palm: [
+                palm_box(p.palm_front_half, p.palm_split, p.palm_front),
+                palm_box(p.palm_back_half, p.palm_back - pre, p.palm_split),
+            ],
+        }
+    }
 }
 
 /// Gripper geometry (metres, TCP frame: z the approach, fingers closing along y) and the
@@ -115,6 +161,39 @@ pub struct AntipodalParams {
 }
 
 impl AntipodalParams {
+    /// The Franka Panda hand (the collision meshes of `pybullet_data/franka_panda`) with
+    /// `AntipodalPlanner()`'s defaults, for a grid of `voxel_size` whose bottom face is
+    /// at `origin_z` on a table at z = 0.
+    pub fn panda(voxel_size: f64, origin_z: f64) -> Self {
+        Self {
+            voxel_size,
+            origin_z,
+            max_opening: 0.08,
+            opening_margin: 0.01,
+            clearance: 0.003,
+            finger_width: 0.021,
+            finger_tip: 0.0072,
+            finger_base: -0.0466,
+            finger_split: -0.02,
+            tip_thickness: 0.016,
+            base_thickness: 0.026,
+            palm_front: -0.039,
+            palm_split: -0.075,
+            palm_back: -0.131,
+            palm_front_half: [0.022, 0.101],
+            palm_back_half: [0.032, 0.104],
+            pregrasp_distance: 0.05,
+            table_z: 0.0,
+            table_clearance: 0.005,
+            min_depth: 0.012,
+            target_depth: 0.022,
+            min_patch: 2,
+            min_contact_height: 0.0075,
+            ledge_factor: 0.4,
+            friction_angle: 35f64.to_radians(),
+        }
+    }
+
     fn check(&self) -> Result<()> {
         let fields = [
             ("voxel_size", self.voxel_size),
@@ -248,7 +327,6 @@ type Found = Vec<(usize, f64, f64)>;
 /// [`Error::NonFinite`] for invalid parameters, labels, candidates or rotations.
 pub fn best_grasps(
     scene: &AntipodalScene<'_>,
-    cells: &GripperCells,
     params: &AntipodalParams,
     rotations: &[[[f64; 3]; 3]],
     tilts: &[f64],
@@ -271,6 +349,7 @@ pub fn best_grasps(
             position: format!("[{k}]"),
         });
     }
+    let cells = &GripperCells::from_params(params);
     let n = scene.candidates.len();
     let mut best = BestGrasps {
         quality: vec![0.0; n],

@@ -5,9 +5,11 @@ use super::*;
 const R: usize = 20;
 const V: f64 = 0.0075;
 
-/// The Panda hand's boxes for 7.5 mm voxels, as the Python planner computes them.
-fn cells() -> GripperCells {
-    GripperCells {
+#[test]
+fn the_panda_hand_on_7_5_mm_cells() {
+    // `AntipodalPlanner()._cells(0.0075)` in the Python package.
+    let cells = GripperCells::from_params(&AntipodalParams::panda(V, 0.0));
+    let want = GripperCells {
         x_pad: (-1, 1),
         x_clear: (-1, 1),
         x_fit: (-2, 2),
@@ -20,37 +22,8 @@ fn cells() -> GripperCells {
             [(-3, 3), (-13, 13), (-10, -5)],
             [(-4, 4), (-14, 14), (-24, -10)],
         ],
-    }
-}
-
-fn params() -> AntipodalParams {
-    AntipodalParams {
-        voxel_size: V,
-        origin_z: 0.0,
-        max_opening: 0.08,
-        opening_margin: 0.01,
-        clearance: 0.003,
-        finger_width: 0.021,
-        finger_tip: 0.0072,
-        finger_base: -0.0466,
-        finger_split: -0.02,
-        tip_thickness: 0.016,
-        base_thickness: 0.026,
-        palm_front: -0.039,
-        palm_split: -0.075,
-        palm_back: -0.131,
-        palm_front_half: [0.022, 0.101],
-        palm_back_half: [0.032, 0.104],
-        pregrasp_distance: 0.05,
-        table_z: 0.0,
-        table_clearance: 0.005,
-        min_depth: 0.012,
-        target_depth: 0.022,
-        min_patch: 2,
-        min_contact_height: 0.0075,
-        ledge_factor: 0.4,
-        friction_angle: 35f64.to_radians(),
-    }
+    };
+    assert_eq!(cells, want);
 }
 
 /// Top-down TCP (z down), closing along world y.
@@ -101,7 +74,7 @@ fn run(b: &Box, cand: &[[usize; 3]], rots: &[[[f64; 3]; 3]]) -> Result<BestGrasp
         candidates: cand,
     };
     let tilts = vec![0.0; rots.len()];
-    best_grasps(&scene, &cells(), &params(), rots, &tilts)
+    best_grasps(&scene, &AntipodalParams::panda(V, 0.0), rots, &tilts)
 }
 
 #[test]
