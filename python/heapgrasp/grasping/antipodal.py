@@ -49,8 +49,9 @@ The search over orientations and candidates runs in the Rust core
 (``heapgrasp._core.antipodal_grasps``, module ``antipodal`` of ``heapgrasp-core``,
 orientations in parallel, the gripper put on the lattice there); this module prepares
 its input (blobs, their centroids, the smoothed occupancy's gradient, the candidate
-TCPs, the gripper's geometry) and turns its output into grasp volumes. The NumPy implementation it replaced is the test
-reference (``tests/reference_antipodal.py``); the two agree bit for bit.
+TCPs, the gripper's geometry) and turns its output into grasp volumes. The NumPy
+implementation it replaced is the test reference (``tests/reference_antipodal.py``);
+the two agree bit for bit.
 
 Blobs of occupied voxels that do not reach down to the table (``support_height``) are
 carving artefacts (e.g. voxels near the top of the cube seen from a few views only) and
