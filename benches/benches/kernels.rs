@@ -42,6 +42,11 @@ fn render(c: &mut Criterion) {
         group.bench_function(format!("{w}x{h}_{}tri", scene.triangle_count()), |b| {
             b.iter(|| scene.render_mask(&cam, &pose))
         });
+        // The face-by-face reference the contour fill replaced.
+        group.bench_function(
+            format!("{w}x{h}_{}tri_faces", scene.triangle_count()),
+            |b| b.iter(|| scene.render_mask_faces(&cam, &pose)),
+        );
     }
     group.finish();
 }

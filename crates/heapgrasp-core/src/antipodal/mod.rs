@@ -8,14 +8,14 @@
 //! each candidate's best grasp. For one orientation (see the Python module docstring for
 //! the method in words):
 //!
-//! 1. the grid is resampled on a lattice aligned with the TCP axes ([`lattice`]);
+//! 1. the grid is resampled on a lattice aligned with the TCP axes (module `lattice`);
 //! 2. *closing region*: the nearest rows on each side where a finger fits bound the
 //!    object segment between the fingers; the opening is symmetric about the TCP;
 //! 3. *collision-free approach*: fingers and palm swept from the pre-grasp pose must be
 //!    free of the conservative lattice and above the table;
 //! 4. *contacts* on the nearest-voxel lattice: engagement depth, a ledge below the
 //!    fingertips, contact patches and their normals in the friction cone, and the
-//!    quality ([`contacts`]).
+//!    quality (module `contacts`).
 //!
 //! The arithmetic follows the NumPy implementation it replaces step by step (a Python
 //! test compares the two on measured grids); orientations run in parallel and are

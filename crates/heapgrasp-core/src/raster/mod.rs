@@ -20,6 +20,9 @@
 //! Closed, consistently oriented meshes (every edge shared by exactly two faces with
 //! opposite directions) skip back faces when the camera is outside their bounding
 //! sphere: the first hit of any ray is then a front face, so the result is unchanged.
+//! Their silhouettes (masks only, not depth or labels) are filled from the contour
+//! edges alone, row by row by winding number (module `contour`), with the same edge lines;
+//! [`MeshScene::render_mask_faces`] is the face-by-face reference it is tested against.
 //! [`MeshScene::cast_ray`] answers single rays exactly with parry3d's BVH.
 
 use std::collections::{BTreeMap, HashMap};
@@ -32,6 +35,8 @@ use parry3d::shape::TriMesh;
 use crate::camera::{PinholeCamera, Pose};
 use crate::error::{Error, Result};
 use crate::rounding::{ceil_fast, floor_fast};
+
+mod contour;
 
 /// Largest accepted vertex or face count of one mesh.
 pub const MAX_MESH_ELEMENTS: usize = 1 << 26;
@@ -47,6 +52,9 @@ struct Mesh {
     sphere_center: Point3<f64>,
     sphere_radius: f64,
     bvh: TriMesh,
+    /// `[i, j, f_ij, f_ji]` per undirected edge of a closed mesh (empty if open): the
+    /// adjacency the contour fill needs.
+    edges: Vec<[u32; 4]>,
 }
 
 /// An inclusive pixel rectangle `[u0, u1] × [v0, v1]`.
@@ -208,9 +216,25 @@ impl MeshScene {
             let row = v as usize * w;
             out[row + rect.u0 as usize..=row + rect.u1 as usize].fill(0);
         }
-        self.rasterize(camera, cam2world, rect, scratch, |row, u0, u1, _| {
-            out[row * w + u0..=row * w + u1].fill(1);
-        });
+        self.fill_mask(camera, cam2world, rect, out, scratch, true);
+    }
+
+    /// The silhouette mask rasterised face by face, without the contour fill of
+    /// [`MeshScene::render_mask`]: the reference that fill is tested and benchmarked
+    /// against (the two differ at most at pixel centres within rounding of a contour
+    /// vertex, see module `contour`).
+    pub fn render_mask_faces(&self, camera: &PinholeCamera, cam2world: &Pose) -> Vec<u8> {
+        let mut out = vec![0u8; camera.pixel_count()];
+        let mut scratch = RasterScratch::default();
+        self.fill_mask(
+            camera,
+            cam2world,
+            PixelRect::full(camera),
+            &mut out,
+            &mut scratch,
+            false,
+        );
+        out
     }
 
     /// Depth (camera-frame z of the nearest hit, metres; 0 where no mesh is hit) and
@@ -314,82 +338,188 @@ impl MeshScene {
     ) where
         F: FnMut(usize, usize, usize, &TriangleRow),
     {
-        let world2cam = cam2world.inverse();
-        let cam_center_world = Point3::from(*cam2world.translation());
-        let (fx, fy, cx, cy) = (camera.fx, camera.fy, camera.cx, camera.cy);
+        let frame = FrameSetup::new(cam2world);
         for (&id, mesh) in &self.meshes {
-            let o2c = world2cam.compose(&mesh.obj2world);
-            // Object-level culling against the bounding sphere.
-            let sc = o2c.transform_point(&mesh.sphere_center);
-            let r = mesh.sphere_radius;
-            if sc.z + r <= 0.0 || !sphere_may_touch(camera, &sc, r, rect) {
+            if let Some(view) = frame.project(mesh, camera, rect, scratch) {
+                rasterize_faces(mesh, id, view.cull, camera, rect, scratch, &mut span);
+            }
+        }
+    }
+
+    /// The silhouette inside `rect`, every closed mesh seen from outside filled from its
+    /// contour ([`contour`]), the others face by face.
+    fn fill_mask(
+        &self,
+        camera: &PinholeCamera,
+        cam2world: &Pose,
+        rect: PixelRect,
+        out: &mut [u8],
+        scratch: &mut RasterScratch,
+        use_contours: bool,
+    ) {
+        let w = camera.width as usize;
+        let frame = FrameSetup::new(cam2world);
+        scratch.events.clear();
+        for (&id, mesh) in &self.meshes {
+            let Some(view) = frame.project(mesh, camera, rect, scratch) else {
                 continue;
-            }
-            let cull = mesh.orientation != 0.0
-                && (mesh.obj2world.transform_point(&mesh.sphere_center) - cam_center_world).norm()
-                    > r;
-            // Each vertex is transformed and projected once per frame; a vertex behind the
-            // camera gets NaN image coordinates, which disables the box test below.
-            scratch.cam.clear();
-            scratch.uv.clear();
-            for p in &mesh.vertices {
-                let q = o2c.transform_point(&Point3::from(*p));
-                scratch.cam.push([q.x, q.y, q.z]);
-                scratch.uv.push(if q.z > 0.0 {
-                    let iz = 1.0 / q.z;
-                    [fx * q.x * iz + cx, fy * q.y * iz + cy]
-                } else {
-                    [f64::NAN, f64::NAN]
-                });
-            }
-            for f in &mesh.faces {
-                let [i0, i1, i2] = f.map(|i| i as usize);
-                let mut bounds = (
-                    rect.u0 as f64,
-                    rect.u1 as f64,
-                    rect.v0 as f64,
-                    rect.v1 as f64,
-                );
-                let (p0, p1, p2) = (scratch.uv[i0], scratch.uv[i1], scratch.uv[i2]);
-                if !(p0[0].is_nan() || p1[0].is_nan() || p2[0].is_nan()) {
-                    // The pixel centres a triangle can cover lie in the box of its
-                    // projected vertices; BOX_SLACK px guards against rounding, and the
-                    // exact decision is the edge functions'.
-                    let umin = p0[0].min(p1[0]).min(p2[0]) - BOX_SLACK;
-                    let umax = p0[0].max(p1[0]).max(p2[0]) + BOX_SLACK;
-                    let vmin = p0[1].min(p1[1]).min(p2[1]) - BOX_SLACK;
-                    let vmax = p0[1].max(p1[1]).max(p2[1]) + BOX_SLACK;
-                    bounds = (
-                        bounds.0.max(ceil_fast(umin)),
-                        bounds.1.min(floor_fast(umax)),
-                        bounds.2.max(ceil_fast(vmin)),
-                        bounds.3.min(floor_fast(vmax)),
-                    );
-                    if bounds.0 > bounds.1 || bounds.2 > bounds.3 {
-                        continue;
-                    }
-                } else if scratch.cam[i0][2] <= 0.0
-                    && scratch.cam[i1][2] <= 0.0
-                    && scratch.cam[i2][2] <= 0.0
-                {
-                    continue; // wholly behind the camera: no forward ray reaches it
-                }
-                let [a, b, c] = [i0, i1, i2].map(|i| Vector3::from(scratch.cam[i]));
-                let n0 = b.cross(&c);
-                let det = a.dot(&n0);
-                if det == 0.0 || (cull && det * mesh.orientation > 0.0) {
-                    continue;
-                }
-                rasterize_triangle(
+            };
+            if use_contours && view.cull && view.all_in_front && !mesh.edges.is_empty() {
+                scratch.front.clear();
+                scratch.front.extend(mesh.faces.iter().map(|f| {
+                    let [a, b, c] = f.map(|i| Vector3::from(scratch.cam[i as usize]));
+                    let det = a.dot(&b.cross(&c));
+                    det != 0.0 && det * mesh.orientation < 0.0
+                }));
+                scratch.events.push_contour(
                     camera,
-                    bounds,
+                    rect,
+                    &mesh.edges,
+                    &scratch.cam,
+                    &scratch.uv,
+                    &scratch.front,
+                    -mesh.orientation,
+                );
+            } else {
+                rasterize_faces(
+                    mesh,
                     id,
-                    [n0, c.cross(&a), a.cross(&b)],
-                    det,
-                    &mut span,
+                    view.cull,
+                    camera,
+                    rect,
+                    scratch,
+                    &mut |row, u0, u1, _: &TriangleRow| {
+                        out[row * w + u0..=row * w + u1].fill(1);
+                    },
                 );
             }
         }
+        scratch.events.fill(w, out);
+    }
+}
+
+/// What every mesh of one frame shares: the world-to-camera transform and the centre.
+struct FrameSetup {
+    world2cam: Pose,
+    cam_center_world: Point3<f64>,
+}
+
+/// How one mesh is seen in a frame (see [`FrameSetup::project`]).
+struct MeshView {
+    /// Closed mesh, camera outside its bounding sphere: back faces can be skipped.
+    cull: bool,
+    /// Every vertex strictly in front of the camera (all projections finite).
+    all_in_front: bool,
+}
+
+impl FrameSetup {
+    fn new(cam2world: &Pose) -> Self {
+        Self {
+            world2cam: cam2world.inverse(),
+            cam_center_world: Point3::from(*cam2world.translation()),
+        }
+    }
+
+    /// Transforms and projects `mesh`'s vertices into `scratch` (once per frame), or
+    /// `None` when its bounding sphere cannot touch `rect`.
+    fn project(
+        &self,
+        mesh: &Mesh,
+        camera: &PinholeCamera,
+        rect: PixelRect,
+        scratch: &mut RasterScratch,
+    ) -> Option<MeshView> {
+        let (fx, fy, cx, cy) = (camera.fx, camera.fy, camera.cx, camera.cy);
+        let o2c = self.world2cam.compose(&mesh.obj2world);
+        // Object-level culling against the bounding sphere.
+        let sc = o2c.transform_point(&mesh.sphere_center);
+        let r = mesh.sphere_radius;
+        if sc.z + r <= 0.0 || !sphere_may_touch(camera, &sc, r, rect) {
+            return None;
+        }
+        let cull = mesh.orientation != 0.0
+            && (mesh.obj2world.transform_point(&mesh.sphere_center) - self.cam_center_world).norm()
+                > r;
+        // Each vertex is transformed and projected once per frame; a vertex behind the
+        // camera gets NaN image coordinates, which disables the box test of
+        // `rasterize_faces`.
+        scratch.cam.clear();
+        scratch.uv.clear();
+        let mut all_in_front = true;
+        for p in &mesh.vertices {
+            let q = o2c.transform_point(&Point3::from(*p));
+            scratch.cam.push([q.x, q.y, q.z]);
+            scratch.uv.push(if q.z > 0.0 {
+                let iz = 1.0 / q.z;
+                [fx * q.x * iz + cx, fy * q.y * iz + cy]
+            } else {
+                all_in_front = false;
+                [f64::NAN, f64::NAN]
+            });
+        }
+        Some(MeshView { cull, all_in_front })
+    }
+}
+
+/// Calls `span(row, u0, u1, tri)` for the covered runs of every drawn face of `mesh`
+/// (vertices already in `scratch`, see [`FrameSetup::project`]).
+fn rasterize_faces<F>(
+    mesh: &Mesh,
+    id: u64,
+    cull: bool,
+    camera: &PinholeCamera,
+    rect: PixelRect,
+    scratch: &RasterScratch,
+    span: &mut F,
+) where
+    F: FnMut(usize, usize, usize, &TriangleRow),
+{
+    for f in &mesh.faces {
+        let [i0, i1, i2] = f.map(|i| i as usize);
+        let mut bounds = (
+            rect.u0 as f64,
+            rect.u1 as f64,
+            rect.v0 as f64,
+            rect.v1 as f64,
+        );
+        let (p0, p1, p2) = (scratch.uv[i0], scratch.uv[i1], scratch.uv[i2]);
+        if !(p0[0].is_nan() || p1[0].is_nan() || p2[0].is_nan()) {
+            // The pixel centres a triangle can cover lie in the box of its projected
+            // vertices; BOX_SLACK px guards against rounding, and the exact decision is
+            // the edge functions'.
+            let umin = p0[0].min(p1[0]).min(p2[0]) - BOX_SLACK;
+            let umax = p0[0].max(p1[0]).max(p2[0]) + BOX_SLACK;
+            let vmin = p0[1].min(p1[1]).min(p2[1]) - BOX_SLACK;
+            let vmax = p0[1].max(p1[1]).max(p2[1]) + BOX_SLACK;
+            bounds = (
+                bounds.0.max(ceil_fast(umin)),
+                bounds.1.min(floor_fast(umax)),
+                bounds.2.max(ceil_fast(vmin)),
+                bounds.3.min(floor_fast(vmax)),
+            );
+            if bounds.0 > bounds.1 || bounds.2 > bounds.3 {
+                continue;
+            }
+        } else if scratch.cam[i0][2] <= 0.0
+            && scratch.cam[i1][2] <= 0.0
+            && scratch.cam[i2][2] <= 0.0
+        {
+            continue; // wholly behind the camera: no forward ray reaches it
+        }
+        let [a, b, c] = [i0, i1, i2].map(|i| Vector3::from(scratch.cam[i]));
+        let n0 = b.cross(&c);
+        let det = a.dot(&n0);
+        if det == 0.0 || (cull && det * mesh.orientation > 0.0) {
+            continue;
+        }
+        rasterize_triangle(
+            camera,
+            bounds,
+            id,
+            [n0, c.cross(&a), a.cross(&b)],
+            det,
+            span,
+        );
     }
 }
 
@@ -402,6 +532,8 @@ const BOX_SLACK: f64 = 1e-6;
 pub struct RasterScratch {
     cam: Vec<[f64; 3]>,
     uv: Vec<[f64; 2]>,
+    front: Vec<bool>,
+    events: contour::Events,
 }
 
 /// Per-triangle data handed to span callbacks: on pixel `(u, v)` the hit depth is
@@ -558,6 +690,11 @@ impl Mesh {
             .collect();
         let tris: Vec<[u32; 3]> = faces.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
         let orientation = closed_orientation(&verts, &tris);
+        let edges = if orientation != 0.0 {
+            contour::closed_edges(&tris).unwrap_or_default()
+        } else {
+            Vec::new()
+        };
         let (lo, hi) = verts.iter().fold(
             ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
             |(lo, hi), p| {
@@ -593,6 +730,7 @@ impl Mesh {
             sphere_center,
             sphere_radius,
             bvh,
+            edges,
         })
     }
 }
