@@ -58,6 +58,9 @@ pub(super) fn closed_edges(faces: &[[u32; 3]]) -> Option<Vec<[u32; 4]>> {
 #[derive(Debug, Default, Clone)]
 pub(super) struct Events {
     keys: Vec<u64>,
+    /// Scratch of the row bucketing in [`Events::fill`].
+    sorted: Vec<u64>,
+    starts: Vec<u32>,
 }
 
 const ROW_SHIFT: u32 = 33;
@@ -146,7 +149,7 @@ impl Events {
     /// Sets to 1 the pixels of `out` (a `width`-wide row-major mask) where the count of
     /// the events is positive. Consumes the events.
     pub(super) fn fill(&mut self, width: usize, out: &mut [u8]) {
-        self.keys.sort_unstable();
+        self.sort();
         let keys = &self.keys;
         let mut k = 0;
         while k < keys.len() {
@@ -172,6 +175,43 @@ impl Events {
             debug_assert_eq!(count, 0, "every closed contour crosses a row evenly");
         }
         self.keys.clear();
+    }
+
+    /// Sorts the keys: bucketed by row (a counting sort over the rows), then each
+    /// row's few events sorted by column.
+    fn sort(&mut self) {
+        let keys = &self.keys;
+        if keys.len() < 64 {
+            self.keys.sort_unstable();
+            return;
+        }
+        let (lo, hi) = keys.iter().fold((u64::MAX, 0), |(lo, hi), &k| {
+            (lo.min(k >> ROW_SHIFT), hi.max(k >> ROW_SHIFT))
+        });
+        let rows = (hi - lo) as usize + 1;
+        self.starts.clear();
+        self.starts.resize(rows + 1, 0);
+        for &k in keys {
+            self.starts[((k >> ROW_SHIFT) - lo) as usize + 1] += 1;
+        }
+        for r in 0..rows {
+            self.starts[r + 1] += self.starts[r];
+        }
+        self.sorted.clear();
+        self.sorted.resize(keys.len(), 0);
+        for &k in keys {
+            let slot = &mut self.starts[((k >> ROW_SHIFT) - lo) as usize];
+            self.sorted[*slot as usize] = k;
+            *slot += 1;
+        }
+        // `starts[r]` is now the end of row r (the start of row r + 1).
+        let mut begin = 0;
+        for r in 0..rows {
+            let end = self.starts[r] as usize;
+            self.sorted[begin..end].sort_unstable();
+            begin = end;
+        }
+        std::mem::swap(&mut self.keys, &mut self.sorted);
     }
 }
 

@@ -188,14 +188,21 @@ impl MeshScene {
 
     /// The silhouette mask, `(height, width)` row-major, 1 where a ray hits a mesh.
     pub fn render_mask(&self, camera: &PinholeCamera, cam2world: &Pose) -> Vec<u8> {
+        self.full_mask(camera, cam2world, true)
+    }
+
+    /// A whole-image mask into a new buffer (`use_contours`: see [`MeshScene::fill_mask`]).
+    fn full_mask(&self, camera: &PinholeCamera, cam2world: &Pose, use_contours: bool) -> Vec<u8> {
         let mut out = vec![0u8; camera.pixel_count()];
+        let rect = PixelRect::full(camera);
         let mut scratch = RasterScratch::default();
-        self.render_mask_into(
+        self.fill_mask(
             camera,
             cam2world,
-            PixelRect::full(camera),
+            rect,
             &mut out,
             &mut scratch,
+            use_contours,
         );
         out
     }
@@ -224,17 +231,7 @@ impl MeshScene {
     /// against (the two differ at most at pixel centres within rounding of a contour
     /// vertex, see module `contour`).
     pub fn render_mask_faces(&self, camera: &PinholeCamera, cam2world: &Pose) -> Vec<u8> {
-        let mut out = vec![0u8; camera.pixel_count()];
-        let mut scratch = RasterScratch::default();
-        self.fill_mask(
-            camera,
-            cam2world,
-            PixelRect::full(camera),
-            &mut out,
-            &mut scratch,
-            false,
-        );
-        out
+        self.full_mask(camera, cam2world, false)
     }
 
     /// Depth (camera-frame z of the nearest hit, metres; 0 where no mesh is hit) and
