@@ -117,6 +117,35 @@ def test_procedural_is_deterministic_and_idempotent(tmp_path: Path) -> None:
     assert generate_procedural(tmp_path / "d", count_per_kind=0) == []
 
 
+def test_procedural_manifest_skips_regeneration(tmp_path: Path, monkeypatch) -> None:
+    import heapgrasp.sim.objects as objects
+
+    first = generate_procedural(tmp_path, count_per_kind=1, seed=5)
+    assert (tmp_path / "procedural/seed5/manifest.json").is_file()
+
+    def boom(rng):  # any regeneration would call a maker
+        raise AssertionError("regenerated although the manifest was valid")
+
+    with monkeypatch.context() as m:
+        m.setattr(objects, "_MAKERS", {k: boom for k in objects.PROCEDURAL_KINDS})
+        assert generate_procedural(tmp_path, count_per_kind=1, seed=5) == first
+        # other arguments are another key: regenerated
+        with pytest.raises(AssertionError, match="regenerated"):
+            generate_procedural(tmp_path, count_per_kind=2, seed=5)
+    # a file changed on disk invalidates the manifest, and regeneration restores it
+    good = first[0].visual_mesh.read_bytes()
+    first[0].visual_mesh.write_bytes(good + b"# edited\n")
+    with monkeypatch.context() as m:
+        m.setattr(objects, "_MAKERS", {k: boom for k in objects.PROCEDURAL_KINDS})
+        with pytest.raises(AssertionError, match="regenerated"):
+            generate_procedural(tmp_path, count_per_kind=1, seed=5)
+    assert generate_procedural(tmp_path, count_per_kind=1, seed=5) == first
+    assert first[0].visual_mesh.read_bytes() == good
+    # a damaged manifest is ignored
+    (tmp_path / "procedural/seed5/manifest.json").write_text("{not json")
+    assert generate_procedural(tmp_path, count_per_kind=1, seed=5) == first
+
+
 def test_procedural_bad_arguments(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="count_per_kind"):
         generate_procedural(tmp_path, count_per_kind=-1)

@@ -192,9 +192,7 @@ class OracleViewScorer:
         self.step = float(step)
         self.target_radius = float(target_radius)
         if target_region not in ("column", "gripper"):
-            raise ValueError(
-                f"target_region must be 'column' or 'gripper', got {target_region!r}"
-            )
+            raise ValueError(f"target_region must be 'column' or 'gripper', got {target_region!r}")
         self.target_region = target_region
 
     def region(self, ctx: ViewContext) -> npt.NDArray[np.bool_] | None:

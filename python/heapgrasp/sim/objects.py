@@ -35,6 +35,7 @@ assigns them per scene.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import os
 import xml.etree.ElementTree as ET
@@ -480,6 +481,11 @@ def generate_procedural(
         raise ValueError(f"seed must be an int >= 0, got {seed!r}")
     cache = Path(cache_dir)
     prefix = "procedural" if seed == 0 else f"procedural/seed{int(seed)}"
+    manifest = cache / prefix / _MANIFEST
+    key = _generator_key(int(seed), int(count_per_kind), float(test_fraction))
+    cached = _read_manifest(manifest, key)
+    if cached is not None:
+        return cached
     models: list[ObjectModel] = []
     for kind_index, kind in enumerate(PROCEDURAL_KINDS):
         for i in range(int(count_per_kind)):
@@ -487,7 +493,82 @@ def generate_procedural(
             visual, pieces = _MAKERS[kind](rng)
             name = f"{prefix}/{kind}_{i:02d}"
             models.append(_write_procedural(cache, name, visual, pieces, test_fraction))
+    if key is not None and models:
+        _write_manifest(manifest, key, models)
     return models
+
+
+_MANIFEST = "manifest.json"
+"""File beside the procedural objects recording what made them (see :func:`_generator_key`)."""
+
+
+def _generator_key(seed: int, count: int, test_fraction: float) -> str | None:
+    """What the procedural files depend on: this module's code, trimesh's and NumPy's
+    versions and the arguments; ``None`` when the module's source cannot be read (then
+    nothing is cached)."""
+    try:
+        source = Path(__file__).read_bytes()
+    except OSError:
+        return None
+    h = hashlib.sha256(source)
+    h.update(f"|{trimesh.__version__}|{np.__version__}|{seed}|{count}|{test_fraction!r}".encode())
+    return h.hexdigest()
+
+
+def _file_digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _read_manifest(path: Path, key: str | None) -> list[ObjectModel] | None:
+    """The models a manifest records, if it was written for ``key`` and every file it
+    lists still has the content it recorded; ``None`` otherwise (regenerate)."""
+    if key is None or not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text("utf-8"))
+        if data.get("key") != key:
+            return None
+        root = path.parent
+        for rel, digest in data["files"].items():
+            f = root / rel
+            if not f.is_file() or _file_digest(f) != digest:
+                return None
+        return [
+            ObjectModel(
+                name=m["name"],
+                source="procedural",
+                visual_mesh=root / m["visual_mesh"],
+                collision_meshes=tuple(root / c for c in m["collision_meshes"]),
+                mass=float(m["mass"]),
+                split=m["split"],
+                extents=(float(m["extents"][0]), float(m["extents"][1]), float(m["extents"][2])),
+            )
+            for m in data["models"]
+        ]
+    except (OSError, ValueError, KeyError, TypeError, IndexError):
+        return None  # unreadable or from another version: regenerate
+
+
+def _write_manifest(path: Path, key: str, models: list[ObjectModel]) -> None:
+    root = path.parent
+    files: dict[str, str] = {}
+    records = []
+    for m in models:
+        paths = [m.visual_mesh, *m.collision_meshes]
+        for p in paths:
+            files[p.relative_to(root).as_posix()] = _file_digest(p)
+        records.append(
+            {
+                "name": m.name,
+                "visual_mesh": m.visual_mesh.relative_to(root).as_posix(),
+                "collision_meshes": [c.relative_to(root).as_posix() for c in m.collision_meshes],
+                "mass": m.mass,
+                "split": m.split,
+                "extents": list(m.extents),
+            }
+        )
+    text = json.dumps({"key": key, "files": files, "models": records}, indent=1)
+    _write_if_changed(path, text)
 
 
 def _write_procedural(
