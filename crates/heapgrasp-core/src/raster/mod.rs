@@ -880,9 +880,10 @@ pub(crate) mod tests {
 
     #[test]
     fn scissored_rendering_matches_the_full_render_inside_the_rect() {
+        // Inside the rect the contour fill, against the whole face-by-face mask.
         let (s, cam2world) = scene();
         let cam = camera();
-        let full = s.render_mask(&cam, &cam2world);
+        let full = s.render_mask_faces(&cam, &cam2world);
         let rect = PixelRect {
             u0: 10,
             u1: 40,
