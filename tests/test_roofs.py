@@ -254,7 +254,7 @@ def test_perception_keeps_what_the_silhouettes_show() -> None:
 
 
 def test_painting_boxes_equals_painting_them_one_by_one() -> None:
-    from heapgrasp.roofs import _paint
+    from reference_roofs import _paint
 
     rng = np.random.default_rng(7)
     h, w = 24, 32
@@ -274,3 +274,66 @@ def test_painting_boxes_equals_painting_them_one_by_one() -> None:
         got = _paint(start.copy(), (u0, u1, v0, v1, ok), value=value)
         np.testing.assert_array_equal(got, want)
         assert (got != start).any()
+
+
+def _random_hull_case(
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, list[SilhouetteView]]:
+    """A random pile of boxes carved from views around it, its hull and the hull with
+    roofs trimmed."""
+    boxes = []
+    for _ in range(int(rng.integers(1, 5))):
+        ext = rng.uniform(0.01, 0.07, 3)
+        centre = (*rng.uniform(-0.06, 0.06, 2), ext[2] / 2 + rng.uniform(0.0, 0.03))
+        boxes.append((tuple(centre), tuple(ext)))
+    scene = MeshScene()
+    for centre, extents in boxes:
+        mesh = trimesh.creation.box(extents=extents)
+        yaw = rng.uniform(0.0, math.pi)
+        pose = np.eye(4)
+        pose[:2, :2] = [[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]]
+        pose[:3, 3] = centre
+        scene.add_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), pose)
+    camera = PinholeCamera(160, 120, 135.0, 140.0, 79.5, 59.5)
+    grid = OccupancyGrid(FRAME.origin, FRAME.size, FRAME.resolution)
+    views = []
+    for _ in range(int(rng.integers(2, 9))):
+        phi, theta = rng.uniform(0, 2 * math.pi), rng.uniform(0.0, math.radians(36.0))
+        r = rng.uniform(0.3, 0.6)
+        eye = r * np.array(
+            [math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)]
+        )
+        pose = look_at(eye, (*rng.uniform(-0.03, 0.03, 2), 0.0))
+        mask = scene.render_mask(camera, pose)
+        grid.integrate(mask, camera, pose)
+        views.append(SilhouetteView(camera, pose, mask))
+    full = grid.high_confidence(0.9)
+    return full, trim_roofs(full, V, float(rng.uniform(0.01, 0.04))), views
+
+
+def test_the_core_check_equals_the_numpy_reference() -> None:
+    # The check moved to the Rust core; its NumPy original is the oracle, voxel for
+    # voxel, on random piles (roofs trimmed with random discs, views in random order).
+    import reference_roofs
+
+    rng = np.random.default_rng(2026)
+    restored = 0
+    for case in range(24):
+        full, trimmed, views = _random_hull_case(rng)
+        if case % 3 == 0:
+            views = views[::-1]
+        got = keep_silhouettes(full, trimmed, FRAME.origin, V, views)
+        want = reference_roofs.keep_silhouettes(full, trimmed, FRAME.origin, V, views)
+        np.testing.assert_array_equal(got, want, err_msg=f"case {case}")
+        restored += int(((got > 0) & ~(trimmed > 0)).sum())
+    assert restored > 0  # the cases do restore voxels, not only keep the trimmed grid
+
+
+def test_the_core_check_refuses_a_bad_view() -> None:
+    full, views = _carve([((0.0, 0.0, 0.0225), (0.06, 0.06, 0.045))])
+    trimmed = trim_roofs(full, V, 0.0225)
+    sheared = views[0].cam2world.copy()
+    sheared[0, 1] += 0.1
+    bad = SilhouetteView(views[0].camera, sheared, views[0].mask)
+    with pytest.raises(ValueError, match="poses"):
+        keep_silhouettes(full, trimmed, FRAME.origin, V, [views[1], bad])

@@ -11,6 +11,7 @@ mod errors;
 mod filter;
 mod occupancy;
 mod raster;
+mod roofs;
 mod score;
 mod tsdf;
 
@@ -41,6 +42,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<tsdf::PyTsdfVolume>()?;
     m.add_function(wrap_pyfunction!(score::score_views, m)?)?;
     m.add_function(wrap_pyfunction!(antipodal::antipodal_grasps, m)?)?;
+    m.add_function(wrap_pyfunction!(roofs::keep_silhouettes, m)?)?;
     m.add_function(wrap_pyfunction!(filter::gaussian_filter3d, m)?)?;
     m.add_function(wrap_pyfunction!(filter::maximum_filter3d, m)?)?;
     m.add_function(wrap_pyfunction!(filter::nms3d, m)?)?;

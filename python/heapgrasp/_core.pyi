@@ -30,6 +30,7 @@ __all__ = [
     "__version__",
     "antipodal_grasps",
     "gaussian_filter3d",
+    "keep_silhouettes",
     "kernel_level",
     "maximum_filter3d",
     "nms3d",
@@ -224,6 +225,24 @@ def antipodal_grasps(
     grid's ``origin_z``, the gripper geometry and the thresholds of ``AntipodalPlanner``
     by name (the core puts the gripper on the lattice). Returns per candidate the best
     quality (0: none), the index of its orientation and its width (m).
+    """
+
+def keep_silhouettes(
+    full: npt.NDArray[np.bool_],
+    trimmed: npt.NDArray[np.bool_],
+    origin: _Vec3,
+    voxel_size: float,
+    cameras: Sequence[PinholeCamera],
+    poses: _F64,
+    masks: Sequence[npt.NDArray[np.bool_]],
+) -> npt.NDArray[np.bool_]:
+    """The voxels of ``full`` (R, R, R) that roof trimming cut from ``trimmed`` and that
+    the silhouettes show to be real (``heapgrasp.roofs.keep_silhouettes``' rule).
+
+    One view per entry of ``cameras``, ``poses`` (N, 4, 4) cam2world and ``masks``
+    ((height, width) bool each). Returns a bool (R, R, R) volume. Raises ``ShapeError``,
+    ``InvalidValueError``, ``NonFiniteError`` or ``NotRigidError`` naming the bad
+    argument.
     """
 
 def gaussian_filter3d(volume: _F32, sigma: float) -> _F32:

@@ -3,8 +3,9 @@
 //! The pure-Rust geometry core of heapgrasp: pinhole cameras and rigid poses, the
 //! Shape-from-Silhouette occupancy grid of HEAPGrasp (eq. 9–10), TSDF fusion for the VGN
 //! baseline, ground-truth silhouettes and depth of triangle meshes, exact view scoring
-//! over all candidate trajectories (eq. 14), and the 3-D Gaussian smoothing and
-//! non-maximum suppression of grasp post-processing (§IV-B).
+//! over all candidate trajectories (eq. 14), the antipodal grasp search, the silhouette
+//! check that follows roof trimming, and the 3-D Gaussian smoothing and non-maximum
+//! suppression of grasp post-processing (§IV-B).
 //!
 //! It knows nothing about Python: functions take slices plus dimensions and return
 //! owned results, and every fallible call returns [`Result`] with a typed [`Error`].
@@ -34,6 +35,7 @@ pub mod parallel;
 pub mod primitives;
 pub mod projector;
 pub mod raster;
+pub mod roofs;
 mod rounding;
 pub mod score;
 pub mod tsdf;
