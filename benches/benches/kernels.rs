@@ -6,6 +6,7 @@ use heapgrasp_benches::{
     camera, candidate_trajectories, grid, mesh_scene, ring, sphere_masks, trajectory, view_pose,
     CUBE,
 };
+use heapgrasp_core::roofs::{keep_silhouettes, SilhouetteView, VoxelLattice};
 use heapgrasp_core::{nms, score, GridSpec, OccupancyGrid};
 
 fn carve(c: &mut Criterion) {
@@ -108,6 +109,59 @@ fn score_views(c: &mut Criterion) {
     group.finish();
 }
 
+/// The silhouette check after roof trimming, on the grid a HEAPGrasp phase leaves: the
+/// view from above `p0`, 10 frames down to the rim of the sphere, 10 back over the top
+/// and 3 more (24 views, the pipeline's `silhouette_views`). The trimming is stood in for
+/// by a cut at 4.5 cm, which takes off the hull's roofs and the tops of the taller
+/// objects, so that the check has roofs to leave off and real parts to put back.
+fn silhouette_check(c: &mut Criterion) {
+    let scene = mesh_scene();
+    let cam = camera(320, 240);
+    let rim = (0.0, std::f64::consts::PI / 5.0 * 0.95);
+    let mut poses = vec![view_pose(0.33, 0.0, 0.0)];
+    poses.extend(trajectory(0.33, (0.0, 0.0), rim, 10));
+    poses.extend(trajectory(0.33, rim, (2.0, 0.05), 10));
+    poses.extend(trajectory(0.33, (2.0, 0.05), (2.3, 0.2), 3));
+    let masks: Vec<Vec<bool>> = poses
+        .iter()
+        .map(|p| scene.render_mask(&cam, p).iter().map(|&m| m > 0).collect())
+        .collect();
+    let spec = grid(40);
+    let mut occ = OccupancyGrid::new(spec);
+    let flat: Vec<u8> = masks.iter().flatten().map(|&m| u8::from(m)).collect();
+    occ.integrate_many(&cam, &poses, &flat)
+        .expect("valid input");
+    let full: Vec<bool> = occ.high_confidence(0.9).iter().map(|&x| x > 0.0).collect();
+    let r = spec.resolution();
+    let cut_level = (0.045 / spec.voxel_size()) as usize;
+    let trimmed: Vec<bool> = full
+        .iter()
+        .enumerate()
+        .map(|(i, &x)| x && i % r < cut_level)
+        .collect();
+    let lattice = VoxelLattice::new(spec.origin(), spec.voxel_size(), r).expect("valid grid");
+    let views: Vec<SilhouetteView<'_>> = poses
+        .iter()
+        .zip(&masks)
+        .map(|(&cam2world, mask)| SilhouetteView {
+            camera: cam,
+            cam2world,
+            mask,
+        })
+        .collect();
+    let cut = full.iter().zip(&trimmed).filter(|(&f, &t)| f && !t).count();
+    let back = keep_silhouettes(&lattice, &full, &trimmed, &views).expect("valid input");
+    let restored = back.iter().filter(|&&x| x).count();
+    assert!(
+        restored > 0 && restored < cut,
+        "{restored} of {cut} cut voxels restored"
+    );
+    println!("keep_silhouettes fixture: {restored} of {cut} cut voxels restored");
+    c.bench_function(&format!("keep_silhouettes_24x320x240_40_{cut}cut"), |b| {
+        b.iter(|| keep_silhouettes(&lattice, &full, &trimmed, &views).expect("valid input"))
+    });
+}
+
 /// The voxels whose centre lies within `radius` of `xy` in x–y (a vertical column, as
 /// `heapgrasp.viewplan.target_region`).
 fn column_region(spec: &GridSpec, xy: [f64; 2], radius: f64) -> Vec<bool> {
@@ -137,5 +191,12 @@ fn nms_bench(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, carve, render, score_views, nms_bench);
+criterion_group!(
+    benches,
+    carve,
+    render,
+    score_views,
+    silhouette_check,
+    nms_bench
+);
 criterion_main!(benches);
