@@ -51,48 +51,10 @@ def keep_silhouettes(
     voxel_size: float,
     views: Sequence[SilhouetteView],
 ) -> F32:
-    """Puts back what :func:`trim_roofs` cut that a silhouette shows to be real.
-
-    A roof is explained away: every ray through it goes on to hit the object under it.
-    A real part that was cut (a bowl's rim standing up, a bottle's neck) leaves pixels
-    of some silhouette that no remaining voxel covers. For every view, the pixels of
-    the mask that the projections of the kept voxels do not cover (each voxel drawn as
-    the box around its circumscribed sphere; slivers one or two pixels wide, which
-    discretisation leaves at the silhouette's rim, are ignored) are *unexplained*. Level
-    by level from the bottom, the cut voxels whose projection holds an unexplained pixel
-    are needed, and the pixels they cover explained. Each column is raised back to its
-    highest needed voxel.
-
-    Parameters
-    ----------
-    full
-        ``(R, R, R)`` grid before trimming (a voxel is occupied when > 0).
-    trimmed
-        The same grid after :func:`trim_roofs` (a subset of ``full``).
-    origin
-        World position (m) of the grid's minimum corner.
-    voxel_size
-        Edge of a voxel (m).
-    views
-        The silhouettes the grid was carved from (any subset).
-
-    Returns
-    -------
-    numpy.ndarray
-        float32 copy of ``trimmed`` with the restored voxels of ``full``.
-    """
+    """``heapgrasp.roofs.keep_silhouettes`` as NumPy computed it (valid input only)."""
     f = np.asarray(full, dtype=np.float32)
     t = np.asarray(trimmed, dtype=np.float32)
-    if f.ndim != 3 or len(set(f.shape)) != 1 or t.shape != f.shape:
-        raise ValueError(
-            f"full and trimmed must be cubic (R, R, R) volumes of one shape, got {f.shape} "
-            f"and {t.shape}"
-        )
     o = np.asarray(origin, dtype=np.float64)
-    if o.shape != (3,) or not np.isfinite(o).all():
-        raise ValueError(f"origin must be 3 finite numbers, got {origin!r}")
-    if not (math.isfinite(voxel_size) and voxel_size > 0):
-        raise ValueError(f"voxel_size must be > 0, got {voxel_size!r}")
     kept = t > 0
     cut = (f > 0) & ~kept
     out = t.copy()

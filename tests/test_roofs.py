@@ -337,3 +337,28 @@ def test_the_core_check_refuses_a_bad_view() -> None:
     bad = SilhouetteView(views[0].camera, sheared, views[0].mask)
     with pytest.raises(ValueError, match="poses"):
         keep_silhouettes(full, trimmed, FRAME.origin, V, [views[1], bad])
+
+
+def test_the_native_check_names_the_bad_argument() -> None:
+    from heapgrasp import ShapeError, _core
+
+    camera = PinholeCamera(8, 6, 5.0, 5.0, 3.5, 2.5)
+    grid = np.zeros((4, 4, 4), dtype=bool)
+    args: dict[str, object] = {
+        "full": grid,
+        "trimmed": grid,
+        "origin": (0.0, 0.0, 0.0),
+        "voxel_size": 0.01,
+        "cameras": [camera],
+        "poses": np.eye(4)[None].copy(),
+        "masks": [np.zeros((6, 8), dtype=bool)],
+    }
+    assert not _core.keep_silhouettes(**args).any()  # type: ignore[arg-type]
+    for bad, match in [
+        ({"masks": [np.zeros((8, 6), dtype=bool)]}, r"masks\[0\]: expected shape \(6, 8\)"),
+        ({"masks": []}, "one entry per view"),
+        ({"trimmed": np.zeros((4, 4, 5), dtype=bool)}, r"trimmed: expected shape \(4, 4, 4\)"),
+        ({"full": np.zeros((4, 4, 4), dtype=np.float32)}, "full: expected dtype bool"),
+    ]:
+        with pytest.raises(ShapeError, match=match):
+            _core.keep_silhouettes(**{**args, **bad})  # type: ignore[arg-type]

@@ -24,7 +24,7 @@ impl<T: Element> ArrayArg<'_, T> {
     }
 }
 
-fn shape_str(shape: &[usize]) -> String {
+pub fn shape_str(shape: &[usize]) -> String {
     let parts: Vec<String> = shape.iter().map(usize::to_string).collect();
     if parts.len() == 1 {
         format!("({},)", parts[0])

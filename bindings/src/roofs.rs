@@ -5,7 +5,7 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 
 use crate::camera::PyPinholeCamera;
-use crate::convert::{array_arg, detached, poses_arg, vec3_arg};
+use crate::convert::{array_arg, detached, poses_arg, shape_str, vec3_arg};
 use crate::errors::{IntoPyResult, ShapeError};
 
 /// The voxels of `full` that trimming cut from `trimmed` and that the silhouettes
@@ -27,15 +27,16 @@ pub fn keep_silhouettes<'py>(
     let r = f.shape[0];
     if f.shape != [r, r, r] {
         return Err(ShapeError::new_err(format!(
-            "full: expected a cubic (R, R, R) volume, got shape {:?}",
-            f.shape
+            "full: expected a cubic (R, R, R) volume, got shape {}",
+            shape_str(&f.shape)
         )));
     }
     let t = array_arg::<bool>(trimmed, "trimmed", "bool", Some(3))?;
     if t.shape != f.shape {
         return Err(ShapeError::new_err(format!(
-            "trimmed: expected shape {:?} like full, got {:?}",
-            f.shape, t.shape
+            "trimmed: expected shape {} like full, got {}",
+            shape_str(&f.shape),
+            shape_str(&t.shape)
         )));
     }
     let lattice = VoxelLattice::new(vec3_arg(origin, "origin")?, voxel_size, r).py()?;
@@ -57,8 +58,8 @@ pub fn keep_silhouettes<'py>(
         let want = [c.inner.height as usize, c.inner.width as usize];
         if m.shape != want {
             return Err(ShapeError::new_err(format!(
-                "masks[{i}]: expected shape ({}, {}) (its camera's height, width), got {:?}",
-                want[0], want[1], m.shape
+                "masks[{i}]: expected shape ({}, {}) (its camera's height, width), got ({}, {})",
+                want[0], want[1], m.shape[0], m.shape[1]
             )));
         }
     }

@@ -32,7 +32,7 @@
 
 use crate::camera::{PinholeCamera, Pose};
 use crate::error::{Error, Result};
-use crate::grid::MAX_RESOLUTION;
+use crate::grid::GridSpec;
 
 /// Cameras closer than this (metres, along the optical axis) to a voxel centre do not
 /// see it (the reference's `z > 1e-3`).
@@ -65,14 +65,8 @@ impl VoxelLattice {
     ///
     /// # Errors
     /// [`Error::NonFinite`] naming `origin`; [`Error::Value`] naming `voxel_size` (not
-    /// finite and > 0) or `resolution` (outside `1..=MAX_RESOLUTION`).
+    /// finite and > 0) or `resolution` (outside `1..=`[`MAX_RESOLUTION`](crate::grid::MAX_RESOLUTION)).
     pub fn new(origin: [f64; 3], voxel_size: f64, resolution: usize) -> Result<Self> {
-        if let Some(i) = origin.iter().position(|x| !x.is_finite()) {
-            return Err(Error::NonFinite {
-                name: "origin".into(),
-                position: format!("[{i}]"),
-            });
-        }
         if !(voxel_size.is_finite() && voxel_size > 0.0) {
             return Err(Error::value(
                 "voxel_size",
@@ -80,13 +74,8 @@ impl VoxelLattice {
                 "must be finite and > 0 metres",
             ));
         }
-        if resolution == 0 || resolution > MAX_RESOLUTION {
-            return Err(Error::value(
-                "resolution",
-                resolution,
-                format!("must be between 1 and {MAX_RESOLUTION} voxels per axis"),
-            ));
-        }
+        // The origin and the resolution are checked as any grid's are.
+        GridSpec::new(origin, voxel_size * resolution.max(1) as f64, resolution)?;
         Ok(Self {
             origin,
             voxel_size,
