@@ -24,6 +24,7 @@ impl<T: Element> ArrayArg<'_, T> {
     }
 }
 
+/// A shape as Python prints it: `(3,)`, `(4, 4)`.
 pub fn shape_str(shape: &[usize]) -> String {
     let parts: Vec<String> = shape.iter().map(usize::to_string).collect();
     if parts.len() == 1 {
