@@ -542,6 +542,68 @@ mod tests {
     }
 
     #[test]
+    fn paths_from_the_only_view_so_far_score_as_defined() {
+        // HEAPGrasp's first waypoint: one view from above, then 10-frame paths that start
+        // next to it and end on the view sphere. Most of the grid was carved by that one
+        // view and is still undecided after the far end, so every frame is carved densely.
+        let cam = PinholeCamera::new(80, 60, 75.0, 75.0, 39.5, 29.5).unwrap();
+        let (_, scene, _) = setup();
+        let top = Pose::look_at([0.15, 0.15, 0.6], [0.15, 0.15, 0.0], [0.0, 1.0, 0.0]).unwrap();
+        let mut grid = OccupancyGrid::new(GridSpec::new([0.0; 3], 0.3, 20).unwrap());
+        grid.integrate(&cam, &top, &scene.render_mask(&cam, &top))
+            .unwrap();
+        let trajectories: Vec<Vec<Pose>> = (0..8)
+            .map(|k| {
+                let phi = std::f64::consts::TAU * k as f64 / 8.0;
+                (1..=10)
+                    .map(|j| {
+                        let s = j as f64 / 10.0;
+                        let (r, theta) = (0.6 - 0.27 * s, 0.6 * s);
+                        let eye = [
+                            0.15 + r * theta.sin() * phi.cos(),
+                            0.15 + r * theta.sin() * phi.sin(),
+                            r * theta.cos(),
+                        ];
+                        Pose::look_at(eye, [0.15, 0.15, 0.15], [0.0, 1.0, 0.0]).unwrap()
+                    })
+                    .collect()
+            })
+            .collect();
+        let scores = score_views(&grid, &scene, &cam, &trajectories, 0.9).unwrap();
+        for (k, t) in trajectories.iter().enumerate() {
+            assert_eq!(
+                scores[k],
+                reference(&grid, &scene, &cam, t, 0.9),
+                "path {k}"
+            );
+        }
+        assert!(scores.iter().all(|&s| s > 0.1), "{scores:?}");
+    }
+
+    #[test]
+    fn narrow_views_that_leave_most_voxels_unseen_score_as_defined() {
+        // A long lens sees a tenth of the cube: the voxels no frame sees stay undecided
+        // through every frame, so all of them are carved densely.
+        let cam = PinholeCamera::new(80, 60, 320.0, 320.0, 39.5, 29.5).unwrap();
+        let (_, scene, _) = setup();
+        let mut grid = OccupancyGrid::new(GridSpec::new([0.0; 3], 0.3, 20).unwrap());
+        let first = ring(1, 0.4, 0.35, 0.3);
+        grid.integrate(&cam, &first[0], &scene.render_mask(&cam, &first[0]))
+            .unwrap();
+        let trajectories: Vec<Vec<Pose>> = (0..6)
+            .map(|k| ring(6, 0.35 + 0.01 * k as f64, 0.3, 0.3 + 0.05 * k as f64))
+            .collect();
+        let scores = score_views(&grid, &scene, &cam, &trajectories, 0.9).unwrap();
+        for (k, t) in trajectories.iter().enumerate() {
+            assert_eq!(
+                scores[k],
+                reference(&grid, &scene, &cam, t, 0.9),
+                "path {k}"
+            );
+        }
+    }
+
+    #[test]
     fn scores_equal_the_definition_on_a_well_observed_grid() {
         // Many frames already integrated: few voxels stay undecided, so the sparse path
         // (per-voxel visits after the first frame) runs instead of the dense one.
