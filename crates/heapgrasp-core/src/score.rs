@@ -521,20 +521,31 @@ mod tests {
         1.0 - g.count_high_confidence(lam) as f32 / grid.count_high_confidence(lam) as f32
     }
 
+    /// `score_views` over `trajectories`, each score checked against the definition.
+    fn scores_as_defined(
+        grid: &OccupancyGrid,
+        scene: &MeshScene,
+        cam: &PinholeCamera,
+        trajectories: &[Vec<Pose>],
+    ) -> Vec<f32> {
+        let scores = score_views(grid, scene, cam, trajectories, 0.9).unwrap();
+        for (k, t) in trajectories.iter().enumerate() {
+            assert_eq!(
+                scores[k],
+                reference(grid, scene, cam, t, 0.9),
+                "candidate {k}"
+            );
+        }
+        scores
+    }
+
     #[test]
     fn scores_equal_render_integrate_count() {
         let (grid, scene, cam) = setup();
         let trajectories: Vec<Vec<Pose>> = (0..12)
             .map(|k| ring(5, 0.3 + 0.01 * k as f64, 0.2 + 0.02 * k as f64, k as f64))
             .collect();
-        let scores = score_views(&grid, &scene, &cam, &trajectories, 0.9).unwrap();
-        for (k, t) in trajectories.iter().enumerate() {
-            assert_eq!(
-                scores[k],
-                reference(&grid, &scene, &cam, t, 0.9),
-                "candidate {k}"
-            );
-        }
+        let scores = scores_as_defined(&grid, &scene, &cam, &trajectories);
         assert!(
             scores.iter().any(|&s| s > 0.1),
             "new views must carve something: {scores:?}"
@@ -569,14 +580,7 @@ mod tests {
                     .collect()
             })
             .collect();
-        let scores = score_views(&grid, &scene, &cam, &trajectories, 0.9).unwrap();
-        for (k, t) in trajectories.iter().enumerate() {
-            assert_eq!(
-                scores[k],
-                reference(&grid, &scene, &cam, t, 0.9),
-                "path {k}"
-            );
-        }
+        let scores = scores_as_defined(&grid, &scene, &cam, &trajectories);
         assert!(scores.iter().all(|&s| s > 0.1), "{scores:?}");
     }
 
@@ -593,14 +597,7 @@ mod tests {
         let trajectories: Vec<Vec<Pose>> = (0..6)
             .map(|k| ring(6, 0.35 + 0.01 * k as f64, 0.3, 0.3 + 0.05 * k as f64))
             .collect();
-        let scores = score_views(&grid, &scene, &cam, &trajectories, 0.9).unwrap();
-        for (k, t) in trajectories.iter().enumerate() {
-            assert_eq!(
-                scores[k],
-                reference(&grid, &scene, &cam, t, 0.9),
-                "path {k}"
-            );
-        }
+        scores_as_defined(&grid, &scene, &cam, &trajectories);
     }
 
     #[test]
@@ -624,14 +621,7 @@ mod tests {
                 )
             })
             .collect();
-        let scores = score_views(&grid, &scene, &cam, &trajectories, 0.9).unwrap();
-        for (k, t) in trajectories.iter().enumerate() {
-            assert_eq!(
-                scores[k],
-                reference(&grid, &scene, &cam, t, 0.9),
-                "candidate {k}"
-            );
-        }
+        scores_as_defined(&grid, &scene, &cam, &trajectories);
     }
 
     /// The region's definition: high-confidence voxels inside it, before and after.
