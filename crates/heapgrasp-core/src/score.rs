@@ -521,6 +521,20 @@ mod tests {
         1.0 - g.count_high_confidence(lam) as f32 / grid.count_high_confidence(lam) as f32
     }
 
+    /// Ten 4-frame rings, lower and closer to the scene than the views already seen.
+    fn low_rings() -> Vec<Vec<Pose>> {
+        (0..10)
+            .map(|k| {
+                ring(
+                    4,
+                    0.25 + 0.02 * k as f64,
+                    0.15 + 0.03 * k as f64,
+                    0.5 * k as f64,
+                )
+            })
+            .collect()
+    }
+
     /// `score_views` over `trajectories`, each score checked against the definition.
     fn scores_as_defined(
         grid: &OccupancyGrid,
@@ -611,16 +625,7 @@ mod tests {
             .flat_map(|p| scene.render_mask(&cam, p))
             .collect();
         grid.integrate_many(&cam, &seen, &masks).unwrap();
-        let trajectories: Vec<Vec<Pose>> = (0..10)
-            .map(|k| {
-                ring(
-                    4,
-                    0.25 + 0.02 * k as f64,
-                    0.15 + 0.03 * k as f64,
-                    0.5 * k as f64,
-                )
-            })
-            .collect();
+        let trajectories = low_rings();
         scores_as_defined(&grid, &scene, &cam, &trajectories);
     }
 
@@ -707,16 +712,7 @@ mod tests {
         // over their columns (the sparse first frame), on a grid seen once (many voxels
         // undecided) and on a well-observed one.
         let (once, well, scene, cam) = grids();
-        let trajectories: Vec<Vec<Pose>> = (0..10)
-            .map(|k| {
-                ring(
-                    4,
-                    0.25 + 0.02 * k as f64,
-                    0.15 + 0.03 * k as f64,
-                    0.5 * k as f64,
-                )
-            })
-            .collect();
+        let trajectories = low_rings();
         for grid in [&once, &well] {
             let spec = grid.spec();
             let region = column(spec, [0.15, 0.13], 0.05);
