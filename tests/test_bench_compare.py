@@ -85,3 +85,37 @@ def test_compare_refuses_what_it_cannot_compare(
     assert "no scene (seed) in common" in capsys.readouterr().err
     assert main(["bench", "compare", str(a), str(a), "--level", "1.5"]) == 2
     assert "level must be in (0, 1), got 1.5" in capsys.readouterr().err
+
+
+def test_compare_pools_runs_on_other_seeds(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Two pairs of runs on disjoint seeds: pooled, the comparison is over all four
+    # scenes, as if each side had been one run.
+    a1 = _write_run(tmp_path / "a1", {1: [("success", 1.0)], 2: [("empty", 1.0)]})
+    b1 = _write_run(tmp_path / "b1", {1: [("success", 2.0)], 2: [("success", 2.0)]})
+    a2 = _write_run(tmp_path / "a2", {101: [("success", 3.0)], 102: [("success", 3.0)]})
+    b2 = _write_run(tmp_path / "b2", {101: [("collision", 2.0)], 102: [("success", 2.0)]})
+    c = compare_runs([a1, a2], [b1, b2])
+    assert c["a"]["paths"] == [str(a1), str(a2)] and c["a"]["scenes"] == 4
+    assert (c["a"]["grasps_succeeded"], c["a"]["grasps_attempted"]) == (3, 4)
+    assert (c["b"]["grasps_succeeded"], c["b"]["grasps_attempted"]) == (3, 4)
+    assert c["a"]["trajectory_length_m"] == pytest.approx(2.0)
+    assert c["success_difference"]["scenes"] == 4
+    assert c["success_difference"]["difference"] == pytest.approx(0.0)
+    assert c["trajectory_ratio"] == pytest.approx(1.0)
+    # The CLI: --pool adds the second pair.
+    out = tmp_path / "c.json"
+    args = ["bench", "compare", str(a1), str(b1), "--pool", str(a2), str(b2), "--json", str(out)]
+    assert main(args) == 0
+    assert "over 4 common scenes" in capsys.readouterr().out
+    assert json.loads(out.read_text())["b"]["paths"] == [str(b1), str(b2)]
+    # A seed on one side twice (overlapping runs, or one run given twice) is refused.
+    with pytest.raises(CompareError, match=r"seed 1 is in both"):
+        compare_runs([a1, _write_run(tmp_path / "a3", {1: [("success", 1.0)]})], b1)
+    with pytest.raises(CompareError, match="given twice"):
+        compare_runs([a1, a1], b1)
+    with pytest.raises(CompareError, match="no run directory"):
+        compare_runs([], b1)
+    assert main(["bench", "compare", str(a1), str(b1), "--pool", str(a1), str(b2)]) == 2
+    assert "given twice" in capsys.readouterr().err

@@ -8,9 +8,15 @@ then A's success rate minus B's with a paired bootstrap interval over the common
 (:mod:`heapgrasp.stats`), and A's mean trajectory as a share of B's. ``--json FILE``
 also writes the numbers.
 
-Example::
+``--pool A2 B2`` (repeatable) adds another pair of runs on other scenes, e.g. the same
+two methods on held-out seeds: A's runs are pooled, B's too, and the comparison is over
+all their scenes. A seed may appear in only one run of each side.
+
+Examples::
 
     heapgrasp bench compare runs/after/heapgrasp runs/before/heapgrasp
+    heapgrasp bench compare runs/top/heapgrasp runs/top/no-vp \
+        --pool runs/heldout/heapgrasp runs/heldout/no-vp
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -37,39 +44,67 @@ class CompareError(ValueError):
     """A run directory cannot be compared (missing, empty, or no scene in common)."""
 
 
-def _phases(run_dir: Path) -> tuple[list[dict[str, Any]], list[float]]:
-    """Phase records keyed by scene seed, and the trajectory of every attempted grasp."""
+def _phases(run_dirs: Sequence[Path]) -> tuple[list[dict[str, Any]], list[float]]:
+    """Phase records keyed by scene seed, and the trajectory of every attempted grasp,
+    over one or more runs whose seeds do not overlap."""
     from heapgrasp.run import SCENES_FILE, load_records
 
-    if not run_dir.is_dir():
-        raise CompareError(f"{run_dir}: not a directory")
-    records = [r for r in load_records(run_dir) if "error" not in r]
-    if not records:
-        raise CompareError(f"{run_dir}: no finished scene in {run_dir / SCENES_FILE}")
     phases, lengths = [], []
-    for r in records:
-        scene = int(r.get("seed", r["scene"]))
-        for p in r["phases"]:
-            phases.append({"scene": scene, "outcome": p["outcome"]})
-            if p.get("grasp_position") is not None and p.get("trajectory_length_m") is not None:
-                lengths.append(float(p["trajectory_length_m"]))
+    owner: dict[int, Path] = {}
+    seen: set[Path] = set()
+    for run_dir in run_dirs:
+        if not run_dir.is_dir():
+            raise CompareError(f"{run_dir}: not a directory")
+        if run_dir.resolve() in seen:
+            raise CompareError(f"{run_dir}: given twice on one side")
+        seen.add(run_dir.resolve())
+        records = [r for r in load_records(run_dir) if "error" not in r]
+        if not records:
+            raise CompareError(f"{run_dir}: no finished scene in {run_dir / SCENES_FILE}")
+        for r in records:
+            scene = int(r.get("seed", r["scene"]))
+            first = owner.setdefault(scene, run_dir)
+            if first != run_dir:
+                raise CompareError(
+                    f"seed {scene} is in both {first} and {run_dir}: pool runs on other scenes"
+                )
+            for p in r["phases"]:
+                phases.append({"scene": scene, "outcome": p["outcome"]})
+                if p.get("grasp_position") is not None and p.get("trajectory_length_m") is not None:
+                    lengths.append(float(p["trajectory_length_m"]))
     return phases, lengths
 
 
+def _dirs(runs: Path | str | Sequence[Path | str]) -> list[Path]:
+    if isinstance(runs, Path | str):
+        return [Path(runs)]
+    if not runs:
+        raise CompareError("no run directory given")
+    return [Path(r) for r in runs]
+
+
 def compare_runs(
-    a: Path, b: Path, *, level: float = 0.95, resamples: int = 10_000, seed: int = 0
+    a: Path | str | Sequence[Path | str],
+    b: Path | str | Sequence[Path | str],
+    *,
+    level: float = 0.95,
+    resamples: int = 10_000,
+    seed: int = 0,
 ) -> dict[str, Any]:
-    """The comparison of run directories ``a`` and ``b`` (see the module docstring)."""
+    """The comparison of run directories ``a`` and ``b`` (see the module docstring); each
+    may be a sequence of runs on disjoint seeds, pooled."""
     runs: dict[str, Any] = {}
     counts = {}
-    for name, path in (("a", a), ("b", b)):
-        phases, lengths = _phases(Path(path))
+    for name, given in (("a", a), ("b", b)):
+        paths = _dirs(given)
+        phases, lengths = _phases(paths)
         per_scene = scene_counts(phases)
         counts[name] = per_scene
         k = sum(c[0] for c in per_scene.values())
         n = sum(c[1] for c in per_scene.values())
         runs[name] = {
-            "path": str(path),
+            "path": " + ".join(str(p) for p in paths),
+            "paths": [str(p) for p in paths],
             "scenes": len(per_scene),
             "grasps_succeeded": k,
             "grasps_attempted": n,
@@ -79,7 +114,9 @@ def compare_runs(
         }
     common = set(counts["a"]) & set(counts["b"])
     if not common:
-        raise CompareError(f"{a} and {b} have no scene (seed) in common")
+        raise CompareError(
+            f"{runs['a']['path']} and {runs['b']['path']} have no scene (seed) in common"
+        )
     diff = paired_success_difference(
         counts["a"], counts["b"], level=level, resamples=resamples, seed=seed
     )
@@ -135,6 +172,15 @@ def add_parser(
     )
     p.add_argument("a", type=Path, help="run directory A (holds scenes.jsonl)")
     p.add_argument("b", type=Path, help="run directory B, the reference")
+    p.add_argument(
+        "--pool",
+        nargs=2,
+        type=Path,
+        action="append",
+        default=[],
+        metavar=("A2", "B2"),
+        help="pool another pair of runs on other seeds into A and B (repeatable)",
+    )
     p.add_argument("--level", type=float, default=0.95, help="interval level (default 0.95)")
     p.add_argument(
         "--resamples", type=int, default=10_000, help="bootstrap resamples (default 10000)"
@@ -147,7 +193,12 @@ def add_parser(
 def command(args: argparse.Namespace) -> int:
     """Runs ``heapgrasp bench compare``; returns the exit status."""
     try:
-        c = compare_runs(args.a, args.b, level=args.level, resamples=args.resamples)
+        c = compare_runs(
+            [args.a, *(pair[0] for pair in args.pool)],
+            [args.b, *(pair[1] for pair in args.pool)],
+            level=args.level,
+            resamples=args.resamples,
+        )
     except ValueError as exc:  # CompareError, and bad --level / --resamples
         print(f"heapgrasp bench compare: {exc}", file=sys.stderr)
         return 2
