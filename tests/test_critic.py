@@ -312,6 +312,39 @@ def test_data_phases_can_be_steered_by_a_critic(tmp_path: Path) -> None:
         CriticDataConfig(critic="auto")
 
 
+@pytest.mark.parametrize("seeds", [(0,), (-1,), (2, 2), (True,)])
+def test_data_object_seeds_are_checked(seeds: tuple[int, ...]) -> None:
+    from heapgrasp.grasping.critic_data import CriticDataConfig
+
+    with pytest.raises(ValueError, match="object_seeds"):
+        CriticDataConfig(object_seeds=seeds)
+
+
+def test_data_with_extra_objects_never_draws_a_test_object(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from heapgrasp.cli import main
+    from heapgrasp.config import RunConfig, object_library
+    from heapgrasp.grasping.critic_data import CriticDataConfig, scene_data
+
+    test_names = {m.name for m in object_library(RunConfig()).models(split="test")}
+    config = CriticDataConfig(scenes=1, objects=5, max_phases=1, max_candidates=1)
+    wide = CriticDataConfig(scenes=1, objects=5, max_phases=1, max_candidates=1, object_seeds=(7,))
+    names = {str(n) for n in scene_data(config, 0)["objects"]}
+    s = scene_data(wide, 0)
+    wide_names = {str(n) for n in s["objects"]}
+    assert len(names) >= 3 and len(wide_names) >= 3  # a pile may drop one off the grid
+    assert not (names | wide_names) & test_names
+    assert all(n.startswith("procedural/") for n in names | wide_names)
+    assert not any(n.startswith("procedural/seed7/") for n in names)
+    # 16 x 5 new objects beside the library's 69 train objects: a 5-object draw
+    # without any of them has probability C(69,5)/C(149,5) < 0.03.
+    assert any(n.startswith("procedural/seed7/") for n in wide_names)
+    assert s["object_seeds"].tolist() == [7]
+    assert main(["critic", "data", "--object-seeds", "0,1", "--out", "unused"]) == 2
+    assert "seeds must be integers >= 1" in capsys.readouterr().err
+
+
 def test_data_of_one_scene_is_consistent_and_trains(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

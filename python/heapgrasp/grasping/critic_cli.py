@@ -38,10 +38,21 @@ def _data(args: argparse.Namespace) -> int:
         max_phases=args.max_phases,
         method=args.method,
         critic=args.critic,
+        object_seeds=tuple(args.object_seeds),
     )
     paths = generate(config, Path(args.out), workers=args.workers)
     print(f"{len(paths)} scene files in {args.out}")
     return 0
+
+
+def _seed_list(text: str) -> tuple[int, ...]:
+    try:
+        seeds = tuple(int(t) for t in text.split(",") if t.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seeds like 1,2, got {text!r}") from None
+    if not seeds or any(s < 1 for s in seeds):
+        raise argparse.ArgumentTypeError(f"seeds must be integers >= 1, got {text!r}")
+    return seeds
 
 
 def _scene_files(folders: list[Path]) -> list[Path]:
@@ -185,6 +196,16 @@ def add_parser(
         help=(
             "critic steering the phases' views: none, default (the shipped one) or a file; "
             "the tried candidates are the planner's own either way (none)"
+        ),
+    )
+    d.add_argument(
+        "--object-seeds",
+        type=_seed_list,
+        default=(),
+        help=(
+            "comma-separated seeds >= 1 of extra procedural objects (16 per kind each, all "
+            "used) beside the benchmark library's train split; they share no mesh with "
+            "its test objects (default: none)"
         ),
     )
     d.add_argument("--workers", type=int_at_least(1), default=1, help="processes (default 1)")

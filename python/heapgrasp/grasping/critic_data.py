@@ -17,7 +17,7 @@ Each scene is written as ``OUT/scene_SEED.npz`` (scenes already there are skippe
 an interrupted run continues): per phase the planner's input grid, the untrimmed
 high-confidence grid ``Ŝ≥λ`` and the camera positions of its frames; per candidate the
 phase, TCP pose, width, score and outcome (:class:`~heapgrasp.sim.gripper.GraspOutcome`
-value).
+value); and the names of the scene's objects.
 """
 
 from __future__ import annotations
@@ -59,6 +59,11 @@ class CriticDataConfig:
     ``default`` or a file): with a critic, HEAPGrasp's targets of eq. 16, and so its
     views, are the ones it makes when deployed with it. The labelled candidates are the
     planner's own either way."""
+    object_seeds: tuple[int, ...] = ()
+    """Seeds of :func:`~heapgrasp.sim.objects.generate_procedural` whose objects join the
+    benchmark library's train split in the scenes, all of them (``test_fraction = 0``).
+    Any seed but 0 makes objects that share no mesh with the benchmark's, so the critic
+    sees more shapes without seeing a test object."""
 
     def __post_init__(self) -> None:
         if self.method not in ("heapgrasp", "no-vp"):
@@ -73,6 +78,13 @@ class CriticDataConfig:
             raise ValueError(f"max_phases must be >= 1, got {self.max_phases}")
         if self.objects < 1:
             raise ValueError(f"objects must be >= 1, got {self.objects}")
+        for s in self.object_seeds:
+            if isinstance(s, bool) or not isinstance(s, int) or s < 1:
+                raise ValueError(
+                    f"object_seeds must be ints >= 1 (0 is the benchmark's own), got {s!r}"
+                )
+        if len(set(self.object_seeds)) != len(self.object_seeds):
+            raise ValueError(f"object_seeds has a seed twice: {self.object_seeds}")
         if self.critic == "auto":
             raise ValueError("critic must be 'none', 'default' or a file path, got 'auto'")
         if self.critic not in ("none", "default") and not Path(self.critic).is_file():
@@ -100,6 +112,7 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
     from heapgrasp.perception import SilhouettePerception
     from heapgrasp.pipeline import build_pipeline
     from heapgrasp.sim.gripper import Grasp, GraspOutcome, execute_grasp
+    from heapgrasp.sim.objects import generate_procedural
     from heapgrasp.sim.optics import DepthModel
     from heapgrasp.sim.world import SimWorld, WorldConfig
 
@@ -108,8 +121,15 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
     categories = ("transparent", "opaque", "specular", "mixed")
     inputs, highs, cameras = [], [], []
     rows: list[dict[str, Any]] = []
+    library = object_library(run_config)
+    for object_seed in config.object_seeds:
+        library.add(
+            generate_procedural(
+                library.cache_dir, count_per_kind=16, seed=object_seed, test_fraction=0.0
+            )
+        )
     with SimWorld(
-        object_library(run_config),
+        library,
         config=WorldConfig(cube_size=run_config.cube_size),
         depth_model=DepthModel(ideal=run_config.ideal_depth),
         seed=seed,
@@ -121,6 +141,7 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
             seed=seed,
             split="train",
         )
+        names = [o.model.name for o in world.objects.values()]
         pipeline = build_pipeline(run_config, world, seed=seed)
         perception = pipeline.perception
         if not isinstance(perception, SilhouettePerception):
@@ -170,6 +191,8 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
         "start": np.str_("top" if index % 2 == 0 else "default"),
         "method": np.str_(config.method),
         "critic": np.str_(config.critic),
+        "object_seeds": np.asarray(config.object_seeds, dtype=np.int64),
+        "objects": np.asarray(names, dtype=np.str_),
         "grasp_input": np.stack(inputs) if inputs else np.zeros((0, 0, 0, 0), bool),
         "high": np.stack(highs) if highs else np.zeros((0, 0, 0, 0), bool),
         "camera_positions": np.concatenate(cameras) if cameras else np.zeros((0, 3)),

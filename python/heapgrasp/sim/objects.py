@@ -1027,6 +1027,10 @@ class ObjectLibrary:
             self._models.append(m)
             self._by_name[m.name] = m
 
+    def add(self, models: Iterable[ObjectModel]) -> None:
+        """Adds ``models``; raises ValueError on a name already in the library."""
+        self._extend(models)
+
     def models(self, split: str | None = None, source: str | None = None) -> list[ObjectModel]:
         """Models, optionally of one split and/or one source, in library order.
 
