@@ -312,6 +312,32 @@ def test_data_phases_can_be_steered_by_a_critic(tmp_path: Path) -> None:
         CriticDataConfig(critic="auto")
 
 
+def test_test_split_data_measures_but_never_trains(tmp_path: Path) -> None:
+    from heapgrasp.cli import main
+    from heapgrasp.grasping.critic_data import CriticDataConfig, load_dataset
+
+    with pytest.raises(ValueError, match="split"):
+        CriticDataConfig(split="val")
+    with pytest.raises(ValueError, match="object_seeds"):
+        CriticDataConfig(split="test", object_seeds=(1,))
+    assert CriticDataConfig(split="test").run_config(0).split == "test"
+    data = tmp_path / "data"
+    data.mkdir()
+    n = 2
+    scene = {
+        "seed": np.int64(0),
+        "split": np.str_("test"),
+        "phase": np.zeros(n, np.int64),
+        "outcome": np.array(["success", "empty"]),
+    }
+    np.savez(data / "scene_000000.npz", **scene)
+    assert load_dataset([data / "scene_000000.npz"])[0]["split"] == "test"
+    with pytest.raises(ValueError, match=r"scene_000000\.npz holds test-split objects"):
+        load_dataset([data / "scene_000000.npz"], training=True)
+    assert main(["critic", "train", str(data), "--out", str(tmp_path / "c.npz")]) == 1
+    assert not (tmp_path / "c.npz").exists()
+
+
 @pytest.mark.parametrize("seeds", [(0,), (-1,), (2, 2), (True,)])
 def test_data_object_seeds_are_checked(seeds: tuple[int, ...]) -> None:
     from heapgrasp.grasping.critic_data import CriticDataConfig

@@ -39,6 +39,7 @@ def _data(args: argparse.Namespace) -> int:
         method=args.method,
         critic=args.critic,
         object_seeds=tuple(args.object_seeds),
+        split=args.split,
     )
     paths = generate(config, Path(args.out), workers=args.workers)
     print(f"{len(paths)} scene files in {args.out}")
@@ -96,7 +97,7 @@ def _train(args: argparse.Namespace) -> int:
 
     folders = [Path(d) for d in args.data]
     paths = _scene_files(folders)
-    scenes = load_dataset(paths)
+    scenes = load_dataset(paths, training=True)
     design = design_matrix(scenes, GridFrame((0.0, 0.0, 0.0), args.cube_size, args.resolution))
     print(f"{len(design)} candidates from {len(paths)} scenes; cross-validating ...", flush=True)
     model = {
@@ -206,6 +207,16 @@ def add_parser(
             "comma-separated seeds >= 1 of extra procedural objects (16 per kind each, all "
             "used) beside the benchmark library's train split; they share no mesh with "
             "its test objects (default: none)"
+        ),
+    )
+    d.add_argument(
+        "--split",
+        choices=("train", "test"),
+        default="train",
+        help=(
+            "objects of the benchmark library's train split (default), or test to measure "
+            "a critic on the benchmark's objects with 'critic eval' ('critic train' "
+            "refuses such files)"
         ),
     )
     d.add_argument("--workers", type=int_at_least(1), default=1, help="processes (default 1)")

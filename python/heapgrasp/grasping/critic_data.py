@@ -2,12 +2,12 @@
 the simulator.
 
 For every scene (seed ``seed + i``, objects of the **train** split, so none of the
-benchmark's test objects) a phase of ``method`` runs as it does in ``heapgrasp run``
-(HEAPGrasp's oracle views or no-vp's circle, the antipodal planner, Table I
-parameters), from the start above the scene for even scenes and from the default start
-for odd ones. On the phase's final
-grid every candidate of :func:`~heapgrasp.grasping.volumes.select_candidates` at a low
-threshold (``epsilon``, up to ``max_candidates``) is executed with VGN's protocol
+benchmark's test objects; ``split = "test"`` makes files for measuring only) a phase
+of ``method`` runs as it does in ``heapgrasp run`` (HEAPGrasp's oracle views or no-vp's
+circle, the antipodal planner, Table I parameters), from the start above the scene for
+even scenes and from the default start for odd ones. On the phase's final grid every
+candidate of :func:`~heapgrasp.grasping.volumes.select_candidates` at a low threshold
+(``epsilon``, up to ``max_candidates``) is executed with VGN's protocol
 (:func:`~heapgrasp.sim.gripper.execute_grasp`) from a saved physics state, which is
 restored after each try, so each candidate is labelled by what it would have done. An
 object one of them picked is then removed, and the next phase starts, up to
@@ -64,6 +64,10 @@ class CriticDataConfig:
     benchmark library's train split in the scenes, all of them (``test_fraction = 0``).
     Any seed but 0 makes objects that share no mesh with the benchmark's, so the critic
     sees more shapes without seeing a test object."""
+    split: str = "train"
+    """Objects of the benchmark library's ``train`` split, or ``test`` to *measure* a
+    critic on the benchmark's own objects (``heapgrasp critic eval``): files of the test
+    split record it, and :func:`load_dataset` refuses them for training."""
 
     def __post_init__(self) -> None:
         if self.method not in ("heapgrasp", "no-vp"):
@@ -78,6 +82,10 @@ class CriticDataConfig:
             raise ValueError(f"max_phases must be >= 1, got {self.max_phases}")
         if self.objects < 1:
             raise ValueError(f"objects must be >= 1, got {self.objects}")
+        if self.split not in ("train", "test"):
+            raise ValueError(f"split must be 'train' or 'test', got {self.split!r}")
+        if self.split == "test" and self.object_seeds:
+            raise ValueError("object_seeds add training objects; they do not go with split='test'")
         for s in self.object_seeds:
             if isinstance(s, bool) or not isinstance(s, int) or s < 1:
                 raise ValueError(
@@ -95,7 +103,7 @@ class CriticDataConfig:
         start = TOP_START if index % 2 == 0 else {}
         return RunConfig(
             method=self.method,
-            split="train",
+            split=self.split,
             objects=self.objects,
             seed=self.seed,
             grasp_critic=self.critic,
@@ -139,7 +147,7 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
             n_objects=run_config.objects,
             category=categories[index % 4],
             seed=seed,
-            split="train",
+            split=config.split,
         )
         names = [o.model.name for o in world.objects.values()]
         pipeline = build_pipeline(run_config, world, seed=seed)
@@ -192,6 +200,7 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
         "method": np.str_(config.method),
         "critic": np.str_(config.critic),
         "object_seeds": np.asarray(config.object_seeds, dtype=np.int64),
+        "split": np.str_(config.split),
         "objects": np.asarray(names, dtype=np.str_),
         "grasp_input": np.stack(inputs) if inputs else np.zeros((0, 0, 0, 0), bool),
         "high": np.stack(highs) if highs else np.zeros((0, 0, 0, 0), bool),
@@ -243,10 +252,20 @@ def generate(config: CriticDataConfig, out: Path, *, workers: int = 1) -> list[P
     return [out / f"scene_{config.seed + i:06d}.npz" for i in range(config.scenes)]
 
 
-def load_dataset(paths: list[Path]) -> list[dict[str, Any]]:
-    """Reads scene files written by :func:`generate`."""
+def load_dataset(paths: list[Path], *, training: bool = False) -> list[dict[str, Any]]:
+    """Reads scene files written by :func:`generate`.
+
+    With ``training``, a file of the test split (``CriticDataConfig.split``) raises
+    ValueError naming it: those scenes hold the benchmark's objects.
+    """
     scenes = []
     for p in paths:
         with np.load(p) as data:
-            scenes.append({k: data[k] for k in data.files})
+            scene = {k: data[k] for k in data.files}
+        if training and str(scene.get("split", "train")) != "train":
+            raise ValueError(
+                f"{p} holds test-split objects (critic data --split test): it is for "
+                "'heapgrasp critic eval', not for training"
+            )
+        scenes.append(scene)
     return scenes
