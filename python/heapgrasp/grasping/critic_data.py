@@ -27,7 +27,7 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -64,7 +64,7 @@ class CriticDataConfig:
     benchmark library's train split in the scenes, all of them (``test_fraction = 0``).
     Any seed but 0 makes objects that share no mesh with the benchmark's, so the critic
     sees more shapes without seeing a test object."""
-    split: str = "train"
+    split: Literal["train", "test"] = "train"
     """Objects of the benchmark library's ``train`` split, or ``test`` to *measure* a
     critic on the benchmark's own objects (``heapgrasp critic eval``): files of the test
     split record it, and :func:`load_dataset` refuses them for training."""
