@@ -338,6 +338,29 @@ def test_test_split_data_measures_but_never_trains(tmp_path: Path) -> None:
     assert not (tmp_path / "c.npz").exists()
 
 
+def test_data_phases_take_other_run_settings(tmp_path: Path) -> None:
+    from heapgrasp.cli import main
+    from heapgrasp.config import ConfigError
+    from heapgrasp.grasping.critic_data import CriticDataConfig, scene_data
+
+    config = CriticDataConfig(
+        scenes=1, objects=2, max_phases=1, max_candidates=1, overrides=(("L", 2),)
+    )
+    assert config.run_config(0).L == 2 and config.run_config(1).L == 2
+    assert config.run_config(0).initial_theta == 0.0  # the data's own start stays
+    assert json.loads(str(scene_data(config, 0)["overrides"])) == {"L": 2}
+    with pytest.raises(ValueError, match="method, seed set by the critic data's own"):
+        CriticDataConfig(overrides=(("seed", 3), ("method", "vgn")))
+    with pytest.raises(ConfigError, match="nope"):
+        CriticDataConfig(overrides=(("nope", 1),))
+    with pytest.raises(ConfigError, match="L"):
+        CriticDataConfig(overrides=(("L", "three"),))
+    out = tmp_path / "d"
+    assert main(["critic", "data", "--set", "nope=1", "--out", str(out)]) == 1
+    assert main(["critic", "data", "--set", "L", "--out", str(out)]) == 1
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("seeds", [(0,), (-1,), (2, 2), (True,)])
 def test_data_object_seeds_are_checked(seeds: tuple[int, ...]) -> None:
     from heapgrasp.grasping.critic_data import CriticDataConfig

@@ -110,16 +110,20 @@ def _parse_value(text: str) -> Any:
         return text
 
 
-def apply_sets(config: RunConfig, items: list[str]) -> RunConfig:
-    """``config`` with ``--set KEY=VALUE`` items applied (VALUE parsed as JSON, else a
-    string)."""
+def parse_sets(items: list[str]) -> dict[str, Any]:
+    """``--set KEY=VALUE`` items as a mapping (VALUE parsed as JSON, else a string)."""
     extra: dict[str, Any] = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep:
             raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
         extra[key.strip()] = _parse_value(value.strip())
-    return config.replace(extra, source="--set")
+    return extra
+
+
+def apply_sets(config: RunConfig, items: list[str]) -> RunConfig:
+    """``config`` with ``--set KEY=VALUE`` items applied (see :func:`parse_sets`)."""
+    return config.replace(parse_sets(items), source="--set")
 
 
 def config_from_args(args: argparse.Namespace) -> RunConfig:

@@ -29,6 +29,7 @@ __all__ = ["add_parser"]
 
 def _data(args: argparse.Namespace) -> int:
     from heapgrasp.grasping.critic_data import CriticDataConfig, generate
+    from heapgrasp.run_cli import parse_sets
 
     config = CriticDataConfig(
         scenes=args.scenes,
@@ -40,6 +41,7 @@ def _data(args: argparse.Namespace) -> int:
         critic=args.critic,
         object_seeds=tuple(args.object_seeds),
         split=args.split,
+        overrides=tuple(parse_sets(args.set).items()),
     )
     paths = generate(config, Path(args.out), workers=args.workers)
     print(f"{len(paths)} scene files in {args.out}")
@@ -217,6 +219,17 @@ def add_parser(
             "objects of the benchmark library's train split (default), or test to measure "
             "a critic on the benchmark's objects with 'critic eval' ('critic train' "
             "refuses such files)"
+        ),
+    )
+    d.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help=(
+            "another RunConfig field of the phases (repeatable), e.g. "
+            "target_region=gripper: the files then tell how often any candidate holds "
+            "on that setting's hulls"
         ),
     )
     d.add_argument("--workers", type=int_at_least(1), default=1, help="processes (default 1)")

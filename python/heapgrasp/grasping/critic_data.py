@@ -22,6 +22,7 @@ value); and the names of the scene's objects.
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
@@ -40,6 +41,9 @@ F64 = npt.NDArray[np.float64]
 
 TOP_START = {"initial_radius": 0.6, "initial_theta": 0.0}
 """The start above the scene of ``docs/benchmarks.md`` (even scenes)."""
+
+OWN_FIELDS = frozenset({"method", "split", "objects", "seed", "scenes", "grasp_critic", *TOP_START})
+"""RunConfig fields that :class:`CriticDataConfig` sets from its own options."""
 
 
 @dataclass(frozen=True)
@@ -68,6 +72,11 @@ class CriticDataConfig:
     """Objects of the benchmark library's ``train`` split, or ``test`` to *measure* a
     critic on the benchmark's own objects (``heapgrasp critic eval``): files of the test
     split record it, and :func:`load_dataset` refuses them for training."""
+    overrides: tuple[tuple[str, Any], ...] = ()
+    """Other :class:`~heapgrasp.config.RunConfig` fields of the phases, as ``(key,
+    value)`` pairs (``--set KEY=VALUE``), e.g. ``target_region = "gripper"``: the files
+    then measure how often *any* candidate holds on that setting's hulls. The fields
+    this data sets itself (:data:`OWN_FIELDS`) cannot be overridden."""
 
     def __post_init__(self) -> None:
         if self.method not in ("heapgrasp", "no-vp"):
@@ -93,15 +102,21 @@ class CriticDataConfig:
                 )
         if len(set(self.object_seeds)) != len(self.object_seeds):
             raise ValueError(f"object_seeds has a seed twice: {self.object_seeds}")
+        own = sorted({k for k, _ in self.overrides} & OWN_FIELDS)
+        if own:
+            raise ValueError(
+                f"overrides: {', '.join(own)} set by the critic data's own options, not --set"
+            )
         if self.critic == "auto":
             raise ValueError("critic must be 'none', 'default' or a file path, got 'auto'")
         if self.critic not in ("none", "default") and not Path(self.critic).is_file():
             raise FileNotFoundError(f"grasp critic file not found: {self.critic}")
+        self.run_config(0)  # a bad override raises ConfigError naming it, before any scene
 
     def run_config(self, index: int) -> RunConfig:
         """The pipeline's configuration for scene ``index``."""
         start = TOP_START if index % 2 == 0 else {}
-        return RunConfig(
+        config = RunConfig(
             method=self.method,
             split=self.split,
             objects=self.objects,
@@ -109,6 +124,7 @@ class CriticDataConfig:
             grasp_critic=self.critic,
             **start,  # type: ignore[arg-type]
         )
+        return config.replace(dict(self.overrides), source="critic data --set")
 
 
 def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
@@ -201,6 +217,7 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
         "critic": np.str_(config.critic),
         "object_seeds": np.asarray(config.object_seeds, dtype=np.int64),
         "split": np.str_(config.split),
+        "overrides": np.str_(json.dumps(dict(config.overrides), sort_keys=True)),
         "objects": np.asarray(names, dtype=np.str_),
         "grasp_input": np.stack(inputs) if inputs else np.zeros((0, 0, 0, 0), bool),
         "high": np.stack(highs) if highs else np.zeros((0, 0, 0, 0), bool),
