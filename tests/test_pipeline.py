@@ -141,6 +141,25 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
     assert result.extra["best_grasp"]["position"][0] == pytest.approx(0.07)
 
 
+def test_with_gamma2_zero_no_grasp_is_planned_before_the_final_grid(tmp_path: Path) -> None:
+    # gamma2 = 0 at every waypoint: no target steers a view, so the only grasp planning
+    # is on the final grid, where the top-scoring candidate is taken.
+    model = box_model(tmp_path, BOX)
+    script = [[_candidate(0.24, 0.6), _candidate(0.07, 0.99)]]  # final
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        views = _ScriptedViews()
+        pipeline = build_pipeline(RunConfig(gamma2=0.0), world, view_scorer=views)
+        calls = iter(script)
+        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
+        result = pipeline.plan()
+    waypoints = result.extra["waypoints"]
+    assert len(waypoints) == 3 and len(views.targets) == 3
+    assert all(w["target"] is None and w["grasp_candidates"] is None for w in waypoints)
+    assert views.targets == [None, None, None]
+    assert result.grasp is not None and result.grasp.pose[0, 3] == pytest.approx(0.07)
+
+
 def test_with_gamma2_at_p0_the_grasp_at_p0_is_planned_and_anchors_eq16(tmp_path: Path) -> None:
     # With gamma2_first > 0 the grasp planned at p0 steers the first view, so it is
     # planned, and eq. 16 keeps the closest grasp from then on.

@@ -364,10 +364,11 @@ class Pipeline:
             for ell in range(cfg.L):
                 t0 = time.perf_counter()
                 gamma2 = cfg.gamma2_first if ell == 0 else cfg.gamma2
-                if ell == 0 and gamma2 == 0.0:
-                    # §VI-B: with gamma2 = 0 the grasp planned at p0 steers nothing (eq.
-                    # 18 uses s alone, the oracle counts the whole grid) and anchors no
-                    # later target (below), so it is not planned at all.
+                if gamma2 == 0.0:
+                    # §VI-B: with gamma2 = 0 a grasp planned here steers nothing (eq. 18
+                    # uses s alone, the oracle counts the whole grid) and anchors no
+                    # later target (below), so it is not planned at all: at p0 with
+                    # Table I's gamma2_first, and at every waypoint with gamma2 = 0.
                     cands = None
                 else:
                     cands = self.grasp_candidates(final=False)
