@@ -5,10 +5,11 @@ grasp (footnote 3 of the paper). :class:`Pipeline.plan` runs it:
 
 1. capture at ``p⁰`` and update the grid (perception, §IV-A);
 2. for ``heapgrasp`` (view planning): at every view waypoint ``ℓ = 0 .. L-1`` plan
-   grasps on ``Ŝ≥λ`` (eq. 11, 15), keep the target grasp closest to the previous one
-   (eq. 16-17), score the U×V candidates (eq. 13/14) and move to
-   ``argmax s + γ2 h`` (eq. 18-19; ``γ2 = gamma2_first`` at ``ℓ = 0``), capturing
-   continuously along the interpolated, ruckig-timed path (eq. 8);
+   grasps on ``Ŝ≥λ`` (eq. 11, 15; not where ``γ2 = 0``, whose target would steer
+   nothing), keep the target grasp closest to the previous one (eq. 16-17), score
+   the U×V candidates (eq. 13/14) and move to ``argmax s + γ2 h`` (eq. 18-19;
+   ``γ2 = gamma2_first`` at ``ℓ = 0``), capturing continuously along the
+   interpolated, ruckig-timed path (eq. 8);
    for the fixed-view methods (``no-vp``, ``vgn``, ``hemisphere6``) visit the fixed
    waypoints the same way;
 3. plan grasps on the final grid: ``heapgrasp`` keeps the target of eq. 16
