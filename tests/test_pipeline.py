@@ -21,8 +21,8 @@ from heapgrasp.run import (
     load_records,
     run,
 )
-from heapgrasp.sim.objects import ObjectLibrary
-from heapgrasp.sim.protocol import StopReason, run_clutter_removal
+from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
+from heapgrasp.sim.protocol import PlanResult, StopReason, run_clutter_removal
 from heapgrasp.sim.world import SimWorld
 
 BOX = (0.05, 0.04, 0.07)
@@ -111,6 +111,20 @@ def _candidate(x: float, score: float) -> GraspCandidate:
     return GraspCandidate(pose, 0.05, score, (0, 0, 0))
 
 
+def _plan_scripted(
+    model: ObjectModel, config: RunConfig, script: list[list[GraspCandidate]]
+) -> tuple[PlanResult, _ScriptedViews]:
+    """One phase on ``model`` alone, the grasp planner's candidates taken from ``script``
+    (one list per call) and the view scores from :class:`_ScriptedViews`."""
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        views = _ScriptedViews()
+        pipeline = build_pipeline(config, world, view_scorer=views)
+        calls = iter(script)
+        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
+        return pipeline.plan(), views
+
+
 def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path) -> None:
     # Eq. 16 keeps the grasp closest to the previous target, but the target planned at
     # p0 (gamma2 = 0, §VI-B: unreliable) must not anchor it: at the second waypoint the
@@ -122,13 +136,7 @@ def test_the_grasp_before_the_first_waypoint_does_not_anchor_eq16(tmp_path: Path
         [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],  # best / near the last target
         [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],  # final
     ]
-    with SimWorld(ObjectLibrary([model]), seed=0) as world:
-        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        views = _ScriptedViews()
-        pipeline = build_pipeline(RunConfig(), world, view_scorer=views)
-        calls = iter(script)
-        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
-        result = pipeline.plan()
+    result, views = _plan_scripted(model, RunConfig(), script)
     waypoints = result.extra["waypoints"]
     assert waypoints[0]["target"] is None and waypoints[0]["grasp_candidates"] is None
     targets = [w["target"]["position"][0] for w in waypoints[1:]]
@@ -146,13 +154,7 @@ def test_with_gamma2_zero_no_grasp_is_planned_before_the_final_grid(tmp_path: Pa
     # is on the final grid, where the top-scoring candidate is taken.
     model = box_model(tmp_path, BOX)
     script = [[_candidate(0.24, 0.6), _candidate(0.07, 0.99)]]  # final
-    with SimWorld(ObjectLibrary([model]), seed=0) as world:
-        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        views = _ScriptedViews()
-        pipeline = build_pipeline(RunConfig(gamma2=0.0), world, view_scorer=views)
-        calls = iter(script)
-        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
-        result = pipeline.plan()
+    result, views = _plan_scripted(model, RunConfig(gamma2=0.0), script)
     waypoints = result.extra["waypoints"]
     assert len(waypoints) == 3 and len(views.targets) == 3
     assert all(w["target"] is None and w["grasp_candidates"] is None for w in waypoints)
@@ -170,13 +172,7 @@ def test_with_gamma2_at_p0_the_grasp_at_p0_is_planned_and_anchors_eq16(tmp_path:
         [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],
         [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],  # final
     ]
-    with SimWorld(ObjectLibrary([model]), seed=0) as world:
-        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        views = _ScriptedViews()
-        pipeline = build_pipeline(RunConfig(gamma2_first=0.35), world, view_scorer=views)
-        calls = iter(script)
-        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
-        result = pipeline.plan()
+    result, views = _plan_scripted(model, RunConfig(gamma2_first=0.35), script)
     targets = [w["target"]["position"][0] for w in result.extra["waypoints"]]
     assert targets == pytest.approx([0.05, 0.06, 0.07])
     assert [t[0] for t in views.targets] == pytest.approx([0.05, 0.06, 0.07])
@@ -193,13 +189,7 @@ def test_final_grasp_best_takes_the_highest_score_on_the_last_grid(tmp_path: Pat
         [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],
         [_candidate(0.24, 0.6), _candidate(0.07, 0.99)],
     ]
-    with SimWorld(ObjectLibrary([model]), seed=0) as world:
-        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        views = _ScriptedViews()
-        pipeline = build_pipeline(RunConfig(final_grasp="best"), world, view_scorer=views)
-        calls = iter(script)
-        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
-        result = pipeline.plan()
+    result, views = _plan_scripted(model, RunConfig(final_grasp="best"), script)
     assert [t[0] for t in views.targets[1:]] == pytest.approx([0.25, 0.24])
     assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.07)
     assert result.grasp is not None
@@ -223,13 +213,7 @@ def test_an_unconfident_final_grasp_takes_more_view_waypoints(
         [_candidate(0.22, 0.99)],  # after the second
     ]
     config = RunConfig(confirm_below=confirm_below, confirm_waypoints=2)
-    with SimWorld(ObjectLibrary([model]), seed=0) as world:
-        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        views = _ScriptedViews()
-        pipeline = build_pipeline(config, world, view_scorer=views)
-        calls = iter(script)
-        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
-        result = pipeline.plan()
+    result, views = _plan_scripted(model, config, script)
     assert result.extra["confirmation_waypoints"] == extra
     assert len(result.extra["waypoints"]) == 3 + extra
     chosen = [0.24, 0.23, 0.22][extra]
@@ -254,12 +238,7 @@ def test_no_final_grasp_takes_a_view_waypoint_only_when_confirming(
         [_candidate(0.23, 0.9)],  # after the extra waypoint
     ]
     config = RunConfig(confirm_below=confirm_below)
-    with SimWorld(ObjectLibrary([model]), seed=0) as world:
-        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        pipeline = build_pipeline(config, world, view_scorer=_ScriptedViews())
-        calls = iter(script)
-        pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
-        result = pipeline.plan()
+    result, _ = _plan_scripted(model, config, script)
     assert result.extra["confirmation_waypoints"] == extra
     assert len(result.extra["waypoints"]) == 3 + extra
     assert (result.grasp is None) == (extra == 0)
