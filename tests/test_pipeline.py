@@ -92,17 +92,22 @@ def test_a_phase_starts_beside_the_scene_looking_at_it(tmp_path: Path) -> None:
 
 
 class _ScriptedViews:
-    """A view scorer that prefers nothing (all zeros) and records the targets it is
-    given."""
+    """A view scorer that prefers nothing (every candidate scores ``level``, 0 unless
+    set, but those nearest the camera, which see nothing new: 0) and records the
+    targets it is given."""
 
     name = "flat"
 
-    def __init__(self) -> None:
+    def __init__(self, level: float = 0.0) -> None:
         self.targets: list[Any] = []
+        self.level = level
 
     def scores(self, ctx: Any) -> Any:
         self.targets.append(None if ctx.target is None else ctx.target[:3, 3].copy())
-        return np.zeros(ctx.candidates.shape[:2], dtype=np.float32)
+        out = np.full(ctx.candidates.shape[:2], self.level, dtype=np.float32)
+        gap = np.linalg.norm(ctx.candidates[..., :3, 3] - ctx.current_pose[:3, 3], axis=-1)
+        out[gap <= gap.min() + 1e-3] = 0.0  # (the top of the sphere is U candidates)
+        return out
 
 
 def _candidate(x: float, score: float) -> GraspCandidate:
@@ -112,13 +117,17 @@ def _candidate(x: float, score: float) -> GraspCandidate:
 
 
 def _plan_scripted(
-    model: ObjectModel, config: RunConfig, script: list[list[GraspCandidate]]
+    model: ObjectModel,
+    config: RunConfig,
+    script: list[list[GraspCandidate]],
+    view_level: float = 0.0,
 ) -> tuple[PlanResult, _ScriptedViews]:
     """One phase on ``model`` alone, the grasp planner's candidates taken from ``script``
-    (one list per call) and the view scores from :class:`_ScriptedViews`."""
+    (one list per call) and the view scores from :class:`_ScriptedViews` (``view_level``
+    everywhere)."""
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        views = _ScriptedViews()
+        views = _ScriptedViews(view_level)
         pipeline = build_pipeline(config, world, view_scorer=views)
         calls = iter(script)
         pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
@@ -242,6 +251,55 @@ def test_no_final_grasp_takes_a_view_waypoint_only_when_confirming(
     assert result.extra["confirmation_waypoints"] == extra
     assert len(result.extra["waypoints"]) == 3 + extra
     assert (result.grasp is None) == (extra == 0)
+
+
+@pytest.mark.parametrize(
+    ("changes", "view_level", "waypoints"),
+    [
+        ({}, 0.0, 3),  # the paper: exactly L waypoints
+        ({"stop_below": 0.02}, 0.0, 1),  # nothing left to carve at the first waypoint
+        ({"stop_below": 0.02}, 0.05, 3),  # every look still carves 5 % of the region
+        ({"stop_below": 0.02, "stop_after": 2}, 0.0, 2),
+        ({"stop_below": 0.02, "stop_confidence": 0.95}, 0.0, 2),  # 0.9 is too doubtful
+        ({"stop_below": 0.02, "stop_confidence": 0.999}, 0.0, 3),
+        # 5 % is worth no detour at 100 per metre: only the camera's own candidate lies
+        # on the way to the grasp, and it sees nothing new.
+        ({"stop_below": 0.02, "stop_detour_weight": 100.0}, 0.05, 1),
+    ],
+)
+def test_viewing_stops_early_where_no_look_would_carve_the_target(
+    tmp_path: Path, changes: dict[str, Any], view_level: float, waypoints: int
+) -> None:
+    # gamma2 = 0 at every waypoint (whole-grid eq. 18): without the early stop nothing
+    # is planned before the final grid; with it the target is planned from the
+    # stop_after-th waypoint on, and its region's scores decide.
+    model = box_model(tmp_path, BOX)
+    planned = [
+        [_candidate(0.25, 0.9), _candidate(0.06, 0.5)],  # at the first waypoint
+        [_candidate(0.24, 0.99)],  # at the second
+        [_candidate(0.23, 0.99)],  # at the third: the final grid
+    ]
+    # Planned at the k-th waypoint from the stop_after-th on (not at all without the
+    # early stop), then on the final grid: once more on the same grid after a stop.
+    first = changes.get("stop_after", 1) if changes else 3
+    script = [*planned[first - 1 : min(waypoints, 2)], planned[waypoints - 1]]
+    config = RunConfig(gamma2=0.0, **changes)
+    result, views = _plan_scripted(model, config, script, view_level)
+    extra = result.extra
+    assert len(extra["waypoints"]) == waypoints
+    stopped = extra["stopped_early"]
+    assert (stopped is not None) == (waypoints < 3)
+    if stopped is not None:
+        # The grasp is planned on the grid where the viewing stopped, and it is the
+        # target whose region was checked.
+        assert stopped["target"]["position"][0] == pytest.approx([0.25, 0.24][waypoints - 1])
+        assert stopped["worth_max"] < 0.02
+        assert result.grasp is not None
+        assert result.grasp.pose[0, 3] == pytest.approx(stopped["target"]["position"][0])
+    # gamma2 = 0: the choice of the next waypoint counts the whole grid (no target), the
+    # stop test the target's region (its target recorded by the scorer).
+    whole = [t for t in views.targets if t is None]
+    assert len(whole) == waypoints
 
 
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:

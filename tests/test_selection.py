@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from heapgrasp.grasping.volumes import GraspCandidate
 from heapgrasp.selection import (
+    detour,
     pose_distance,
     progress_rate,
     select_next_waypoint,
@@ -91,3 +92,25 @@ def test_eq18_trades_view_score_against_progress() -> None:
         select_next_waypoint(np.array([[np.nan], [0.1]]), cands, current, target, 0.35)
     with pytest.raises(ValueError, match="gamma2"):
         select_next_waypoint(scores, cands, current, target, -0.1)
+
+
+def test_detour_is_the_path_a_waypoint_adds_on_the_way_to_the_grasp() -> None:
+    current = pose((1.0, 0.0, 0.0))
+    grasp = pose((0.0, 0.0, 0.0), yaw=1.0)  # the orientation plays no part
+    cands = np.stack(
+        [
+            pose((0.5, 0.0, 0.0)),  # on the way: nothing added
+            pose((1.0, 0.0, 0.0)),  # staying put: nothing added
+            pose((1.0, 1.0, 0.0)),  # 1 there, sqrt(2) on, 1 saved
+            pose((2.0, 0.0, 0.0)),  # 1 there and 1 back
+        ]
+    ).reshape(2, 2, 4, 4)
+    d = detour(cands, current, grasp)
+    assert d.shape == (2, 2)
+    np.testing.assert_allclose(d.ravel(), [0.0, 0.0, math.sqrt(2.0), 2.0], atol=1e-12)
+    with pytest.raises(ValueError, match="candidate_poses"):
+        detour(np.zeros((3, 3)), current, grasp)
+    bad = grasp.copy()
+    bad[0, 3] = np.nan
+    with pytest.raises(ValueError, match="target_pose"):
+        detour(cands, current, bad)

@@ -145,6 +145,23 @@ class RunConfig:
     """At most this many extra view waypoints per phase (``confirm_below``)."""
     confirm_gamma2: float = 0.35
     """γ2 of eq. 18 for the extra waypoints (``confirm_below``)."""
+    stop_below: float = 0.0
+    """HEAPGrasp with the oracle only: stop viewing early, at a view waypoint where no
+    candidate's eq. 14 score on the target grasp's region (``target_region``, radius
+    ``target_radius``) reaches this, i.e. where no further waypoint would carve that share
+    of what is measured around the grasp; the phase then grasps on the grid it has. ``L``
+    becomes the most waypoints a phase takes. Applies from the ``stop_after``-th waypoint
+    on; 0 never stops (the paper: exactly L waypoints). Not in the paper."""
+    stop_confidence: float = 0.0
+    """``stop_below`` ends the viewing only where the target grasp scores at least this
+    (with the critic: its probability of success); a doubtful target keeps looking."""
+    stop_detour_weight: float = 0.0
+    """In the ``stop_below`` test, a candidate's score on the target's region is first
+    lessened by this weight (per metre) times the path it adds on the way to the grasp
+    (:func:`heapgrasp.selection.detour`): a look must be worth its detour."""
+    stop_after: int = 1
+    """The fewest view waypoints a phase visits before ``stop_below`` may end its
+    viewing."""
     failed_grasp_radius: float = 0.02
     """After a failed grasp, candidates within this distance of it (m) are not tried
     again until a grasp succeeds (the scene has then changed). The simulation is
@@ -272,6 +289,9 @@ class RunConfig:
         for name in ("gamma1", "gamma2", "gamma2_first", "confirm_gamma2"):
             between(name, 0.0, 100.0)
         between("confirm_below", 0.0, 1.0)
+        between("stop_below", 0.0, 1.0)
+        between("stop_confidence", 0.0, 1.0)
+        between("stop_detour_weight", 0.0, 100.0)
         if self.sigma is not None:
             between("sigma", 0.0, 100.0)
         between("initial_phi", -4 * math.pi, 4 * math.pi)
@@ -290,6 +310,7 @@ class RunConfig:
         at_least("scenes", 1)
         at_least("silhouette_views", 0)
         at_least("confirm_waypoints", 0)
+        at_least("stop_after", 1)
         at_least("seed", 0)
         at_least("resolution", 8)
         if self.resolution > 512:

@@ -60,7 +60,7 @@ from heapgrasp.perception import (
     Segmenter,
     SilhouettePerception,
 )
-from heapgrasp.selection import select_next_waypoint, select_target, top_scoring
+from heapgrasp.selection import detour, select_next_waypoint, select_target, top_scoring
 from heapgrasp.sim.camera import CameraSpec
 from heapgrasp.sim.gripper import Grasp, GraspOutcome
 from heapgrasp.sim.motion import MotionLimits, ViewSphere, plan_waypoints, time_path
@@ -104,6 +104,8 @@ class _PhaseLog:
     waypoints: list[dict[str, Any]] = field(default_factory=list)
     compute: float = 0.0
     motion: float = 0.0
+    stopped: dict[str, Any] | None = None
+    """Where ``stop_below`` ended the viewing early, and why; None: it did not."""
 
 
 @dataclass
@@ -288,11 +290,14 @@ class Pipeline:
         t1: float,
         *,
         trusted: bool,
-    ) -> None:
+        stop_below: float = 0.0,
+    ) -> bool:
         """Eq. 18-19 from the current pose toward ``target``, then the move there with
         continuous capture; ``cands``: the grasps planned here (None: not planned);
         ``t0``/``t1``: when grasp planning began and ended. ``trusted``: the target may
-        steer the view scores (the oracle's target column)."""
+        steer the view scores (the oracle's target column). With ``stop_below`` > 0 and a
+        target, no move is made when no candidate's score on the target's region reaches
+        it (``RunConfig.stop_below``). Returns False when it stopped there."""
         cfg = self.config
         assert self.view_scorer is not None
         assert isinstance(self.perception, SilhouettePerception)
@@ -306,7 +311,31 @@ class Pipeline:
             self.world.object_scene,
             target=None if target is None or not trusted else target.pose,
         )
-        scores = self.view_scorer.scores(ctx)
+        scores: npt.NDArray[np.float32] | None = None
+        if stop_below > 0.0 and target is not None and target.score >= cfg.stop_confidence:
+            # The stop test counts eq. 14 on the target's region, whether or not that
+            # region steers the choice below (it does not where gamma2 = 0).
+            region_ctx = ctx if trusted else dataclasses.replace(ctx, target=target.pose)
+            region_scores = self.view_scorer.scores(region_ctx)
+            worth = region_scores - cfg.stop_detour_weight * detour(
+                self.candidates, phase.current, target.pose
+            )
+            if trusted:
+                scores = region_scores
+            if float(worth.max()) < stop_below:
+                t2 = time.perf_counter()
+                phase.compute += t2 - t0
+                phase.stopped = {
+                    "target": _candidate_record(target),
+                    "grasp_candidates": None if cands is None else len(cands),
+                    "region_score_max": float(region_scores.max()),
+                    "worth_max": float(worth.max()),
+                    "grasp_planning_s": t1 - t0,
+                    "view_planning_s": t2 - t1,
+                }
+                return False
+        if scores is None:
+            scores = self.view_scorer.scores(ctx)
         t2 = time.perf_counter()
         u, v = select_next_waypoint(
             scores,
@@ -321,7 +350,7 @@ class Pipeline:
         goal = self.candidates[u, v]
         visited = self._visit(phase, goal)
         if visited is None:
-            return
+            return True
         cap, duration = visited
         phase.waypoints.append(
             {
@@ -339,6 +368,7 @@ class Pipeline:
                 "latency_s": t3 - t0,
             }
         )
+        return True
 
     def _final_choice(
         self, cands: list[GraspCandidate], target: GraspCandidate | None
@@ -365,7 +395,11 @@ class Pipeline:
             for ell in range(cfg.L):
                 t0 = time.perf_counter()
                 gamma2 = cfg.gamma2_first if ell == 0 else cfg.gamma2
-                if gamma2 == 0.0:
+                # Early stop (not in the paper): from the stop_after-th waypoint on, a
+                # target is planned even where gamma2 = 0, so that its region can be
+                # checked for views that would still carve it.
+                stop_test = cfg.stop_below > 0.0 and ell >= cfg.stop_after
+                if gamma2 == 0.0 and not stop_test:
                     # §VI-B: with gamma2 = 0 a grasp planned here steers nothing (eq. 18
                     # uses s alone, the oracle counts the whole grid) and anchors no
                     # later target (below), so it is not planned at all: at p0 with
@@ -376,9 +410,18 @@ class Pipeline:
                     # No candidate at this waypoint: no target, and eq. 18 uses s alone.
                     target = select_target(cands, target, cfg.gamma1)
                 # A target planned where gamma2 = 0 is unreliable (§VI-B): no region.
-                self._view_step(
-                    phase, cands, target, gamma2, t0, time.perf_counter(), trusted=gamma2 > 0
+                moved = self._view_step(
+                    phase,
+                    cands,
+                    target,
+                    gamma2,
+                    t0,
+                    time.perf_counter(),
+                    trusted=gamma2 > 0,
+                    stop_below=cfg.stop_below if stop_test else 0.0,
                 )
+                if not moved:
+                    break
                 if gamma2 == 0.0:
                     # §VI-B: grasps planned before the first view waypoint are unreliable,
                     # which is why gamma2 = 0 there; neither may such a grasp anchor the
@@ -427,6 +470,7 @@ class Pipeline:
             "final_candidates": len(cands),
             "final_planning_s": final_latency,
             "confirmation_waypoints": confirmations,
+            "stopped_early": phase.stopped,
             "joint_path_errors": self.joint_path_errors,
             "unreachable_waypoints": self.unreachable_waypoints,
             "target_grasp": _candidate_record(chosen),

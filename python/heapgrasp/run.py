@@ -190,6 +190,9 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         "stop_reasons": dict(Counter(r["stop_reason"] for r in done)),
         "wall_time_per_scene_s": _stats([float(r["wall_time_s"]) for r in done]),
         "planning_latency_per_waypoint_s": _stats(latencies),
+        "view_waypoints_per_phase": _stats([len(p.get("waypoints", [])) for p in phase_dicts]),
+        # Phases whose viewing ended before L waypoints (RunConfig.stop_below).
+        "early_stops": sum(1 for p in phase_dicts if p.get("stopped_early")),
         "config": config.to_dict(),
         "phases": phase_dicts,
     }
@@ -374,6 +377,12 @@ def format_summary(summary: dict[str, Any]) -> str:
         f"planning latency per waypoint: {_fmt(lat, 3)} s; wall-clock per scene: "
         f"{_fmt(wall, 1)} s; stop reasons: {summary.get('stop_reasons')}"
     )
+    if summary.get("early_stops"):
+        lines.append(
+            f"view waypoints per phase: {_fmt(summary['view_waypoints_per_phase'], 2)} "
+            f"({summary['early_stops']} of {len(summary.get('phases', []))} phases stopped "
+            "viewing early)"
+        )
     if summary.get("scenes_failed"):
         lines.append(f"FAILED scenes: {summary['scenes_failed']}")
     return "\n".join(lines)

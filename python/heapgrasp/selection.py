@@ -20,6 +20,7 @@ import numpy.typing as npt
 from heapgrasp.grasping.volumes import GraspCandidate
 
 __all__ = [
+    "detour",
     "pose_distance",
     "progress_rate",
     "select_next_waypoint",
@@ -105,6 +106,25 @@ def progress_rate(
     if denom <= 0.0:
         return np.zeros(cands.shape[:-2])
     return np.asarray(1.0 - pose_distance(cands, target, gamma1) / denom, dtype=np.float64)
+
+
+def detour(
+    candidate_poses: npt.ArrayLike, current_pose: npt.ArrayLike, target_pose: npt.ArrayLike
+) -> F64:
+    """The path a view waypoint adds on the way to the target grasp (m, straight lines):
+    ``|c - x| + |g - c| - |g - x|`` for candidate position ``c``, current camera
+    position ``x`` and grasp position ``g``; 0 on the segment from ``x`` to ``g``.
+
+    ``candidate_poses`` is ``(..., 4, 4)``; the result has its leading shape. The
+    linearised path term of the paper's eq. 7 (``α d_space``) for one more waypoint,
+    where eq. 19's ``h`` only rewards getting closer to the grasp.
+    """
+    cands = _as_poses("candidate_poses", candidate_poses)[..., :3, 3]
+    x = _as_poses("current_pose", current_pose)[:3, 3]
+    g = _as_poses("target_pose", target_pose)[:3, 3]
+    there = np.linalg.norm(cands - x, axis=-1)
+    on = np.linalg.norm(g - cands, axis=-1)
+    return np.asarray(there + on - np.linalg.norm(g - x), dtype=np.float64)
 
 
 def select_next_waypoint(
