@@ -387,6 +387,12 @@ def test_an_interrupted_run_resumes_without_losing_scenes(tmp_path: Path) -> Non
     assert summary["grasps_attempted"] == sum(
         p["outcome"] != "no_candidate" for r in records for p in r["phases"]
     )
+    # The circle visits all its waypoints (3 and the way back): no phase stops early.
+    assert summary["early_stops"] == 0
+    assert summary["view_waypoints_per_phase"]["mean"] == pytest.approx(4.0)
+    assert "stopped viewing early" not in format_summary(summary)
+    stopped = format_summary({**summary, "early_stops": 1})
+    assert f"(1 of {len(summary['phases'])} phases stopped viewing early)" in stopped
     # Same seeds → same scenes: a fresh run of scene 0 gives the same record.
     again = run(config.replace({"scenes": 1}), None, progress=False)
     np.testing.assert_allclose(
