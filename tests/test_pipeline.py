@@ -262,6 +262,8 @@ def test_no_final_grasp_takes_a_view_waypoint_only_when_confirming(
         ({"stop_below": 0.02, "stop_after": 2}, 0.0, 2),
         ({"stop_below": 0.02, "stop_confidence": 0.95}, 0.0, 2),  # 0.9 is too doubtful
         ({"stop_below": 0.02, "stop_confidence": 0.999}, 0.0, 3),
+        # the waypoints' grasps were not scored by the critic: the final grid is planned
+        ({"stop_below": 0.02, "critic_at_waypoints": False}, 0.0, 1),
         # 5 % is worth no detour at 100 per metre: only the camera's own candidate lies
         # on the way to the grasp, and it sees nothing new.
         ({"stop_below": 0.02, "stop_detour_weight": 100.0}, 0.05, 1),
@@ -280,9 +282,12 @@ def test_viewing_stops_early_where_no_look_would_carve_the_target(
         [_candidate(0.23, 0.99)],  # at the third: the final grid
     ]
     # Planned at the k-th waypoint from the stop_after-th on (not at all without the
-    # early stop), then on the final grid: once more on the same grid after a stop.
+    # early stop), then on the final grid, which is not planned again after a stop: the
+    # script runs dry if it is.
     first = changes.get("stop_after", 1) if changes else 3
-    script = [*planned[first - 1 : min(waypoints, 2)], planned[waypoints - 1]]
+    script = planned[first - 1 : waypoints]
+    if changes.get("critic_at_waypoints") is False:
+        script.append(planned[waypoints - 1])
     config = RunConfig(gamma2=0.0, **changes)
     result, views = _plan_scripted(model, config, script, view_level)
     extra = result.extra

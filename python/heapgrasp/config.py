@@ -146,11 +146,12 @@ class RunConfig:
     confirm_gamma2: float = 0.35
     """γ2 of eq. 18 for the extra waypoints (``confirm_below``)."""
     stop_below: float = 0.0
-    """HEAPGrasp with the oracle only: stop viewing early, at a view waypoint where no
-    candidate's eq. 14 score on the target grasp's region (``target_region``, radius
-    ``target_radius``) reaches this, i.e. where no further waypoint would carve that share
-    of what is measured around the grasp; the phase then grasps on the grid it has. ``L``
-    becomes the most waypoints a phase takes. Applies from the ``stop_after``-th waypoint
+    """HEAPGrasp with a view planner (oracle or network): stop viewing early, at a view
+    waypoint where no candidate's eq. 14 score on the target grasp's region
+    (``target_region``, radius ``target_radius``) reaches this, i.e. where no further
+    waypoint would carve that share of what is measured around the grasp; the phase then
+    grasps on the grid it has (its grasps are not planned again). ``L`` becomes the most
+    waypoints a phase takes. Applies from the ``stop_after``-th waypoint
     on; 0 never stops (the paper: exactly L waypoints). Not in the paper."""
     stop_confidence: float = 0.0
     """``stop_below`` ends the viewing only where the target grasp scores at least this

@@ -106,6 +106,9 @@ class _PhaseLog:
     motion: float = 0.0
     stopped: dict[str, Any] | None = None
     """Where ``stop_below`` ended the viewing early, and why; None: it did not."""
+    final_candidates: list[GraspCandidate] | None = None
+    """The grasps planned where the viewing stopped early, when they are those of a final
+    grid (scored by the critic, if any): the final grid is not planned again."""
 
 
 @dataclass
@@ -333,6 +336,8 @@ class Pipeline:
                     "grasp_planning_s": t1 - t0,
                     "view_planning_s": t2 - t1,
                 }
+                if cands is not None and (cfg.critic_at_waypoints or self.critic is None):
+                    phase.final_candidates = cands
                 return False
         if scores is None:
             scores = self.view_scorer.scores(ctx)
@@ -441,7 +446,9 @@ class Pipeline:
                     }
                 )
         t0 = time.perf_counter()
-        cands = self.grasp_candidates()
+        # Where viewing stopped early the grid is the one just planned there.
+        final = phase.final_candidates
+        cands = final if final is not None else self.grasp_candidates()
         best, chosen = self._final_choice(cands, target)
         confirmations = 0
         while (
