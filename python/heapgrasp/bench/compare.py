@@ -12,6 +12,10 @@ also writes the numbers.
 two methods on held-out seeds: A's runs are pooled, B's too, and the comparison is over
 all their scenes. A seed may appear in only one run of each side.
 
+``--breakdown`` adds, for each side, where its grasps fail: success and failure outcomes
+per band of the executed grasp's score and per way the viewing ended
+(:mod:`heapgrasp.bench.breakdown`); ``--json`` always holds it.
+
 Examples::
 
     heapgrasp bench compare runs/after/heapgrasp runs/before/heapgrasp
@@ -30,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from heapgrasp.bench.breakdown import breakdown, format_breakdown
 from heapgrasp.stats import (
     format_interval,
     paired_success_difference,
@@ -44,12 +49,14 @@ class CompareError(ValueError):
     """A run directory cannot be compared (missing, empty, or no scene in common)."""
 
 
-def _phases(run_dirs: Sequence[Path]) -> tuple[list[dict[str, Any]], list[float]]:
-    """Phase records keyed by scene seed, and the trajectory of every attempted grasp,
-    over one or more runs whose seeds do not overlap."""
+def _phases(
+    run_dirs: Sequence[Path],
+) -> tuple[list[dict[str, Any]], list[float], list[dict[str, Any]]]:
+    """Outcomes keyed by scene seed, the trajectory of every attempted grasp, and the
+    phase records themselves, over one or more runs whose seeds do not overlap."""
     from heapgrasp.run import SCENES_FILE, load_records
 
-    phases, lengths = [], []
+    phases, lengths, records_out = [], [], []
     owner: dict[int, Path] = {}
     seen: set[Path] = set()
     for run_dir in run_dirs:
@@ -70,9 +77,10 @@ def _phases(run_dirs: Sequence[Path]) -> tuple[list[dict[str, Any]], list[float]
                 )
             for p in r["phases"]:
                 phases.append({"scene": scene, "outcome": p["outcome"]})
+                records_out.append(p)
                 if p.get("grasp_position") is not None and p.get("trajectory_length_m") is not None:
                     lengths.append(float(p["trajectory_length_m"]))
-    return phases, lengths
+    return phases, lengths, records_out
 
 
 def _dirs(runs: Path | str | Sequence[Path | str]) -> list[Path]:
@@ -97,7 +105,7 @@ def compare_runs(
     counts = {}
     for name, given in (("a", a), ("b", b)):
         paths = _dirs(given)
-        phases, lengths = _phases(paths)
+        phases, lengths, records = _phases(paths)
         per_scene = scene_counts(phases)
         counts[name] = per_scene
         k = sum(c[0] for c in per_scene.values())
@@ -111,6 +119,7 @@ def compare_runs(
             "grasp_success_rate": k / n if n else None,
             "grasp_success_ci": [100 * x for x in success_interval(k, n, level)] if n else None,
             "trajectory_length_m": float(np.mean(lengths)) if lengths else None,
+            "breakdown": breakdown(records),
         }
     common = set(counts["a"]) & set(counts["b"])
     if not common:
@@ -129,8 +138,9 @@ def compare_runs(
     }
 
 
-def format_comparison(c: dict[str, Any]) -> str:
-    """The plain-text report of :func:`compare_runs`."""
+def format_comparison(c: dict[str, Any], *, details: bool = False) -> str:
+    """The plain-text report of :func:`compare_runs`; ``details`` adds each run's
+    :mod:`~heapgrasp.bench.breakdown` (success per score band and per viewing)."""
     pct = round(100 * c["level"])
     lines = [f"{'run':<4} {'scenes':>6} {'success (%)':>20} {f'{pct} % CI':>16} {'traj. (m)':>10}"]
     for name in ("a", "b"):
@@ -157,6 +167,10 @@ def format_comparison(c: dict[str, Any]) -> str:
     if c["trajectory_ratio"] is not None:
         lines.append(f"trajectory A / B: {100 * c['trajectory_ratio']:.1f} %")
     lines.append(f"A: {c['a']['path']}\nB: {c['b']['path']}")
+    if details:
+        for name in ("a", "b"):
+            lines.append("")
+            lines.append(format_breakdown(name.upper(), c[name]["breakdown"]))
     return "\n".join(lines)
 
 
@@ -185,6 +199,13 @@ def add_parser(
     p.add_argument(
         "--resamples", type=int, default=10_000, help="bootstrap resamples (default 10000)"
     )
+    p.add_argument(
+        "--breakdown",
+        action="store_true",
+        help="also print each run's success per band of the executed grasp's score (the "
+        "critic's probability) and per way its viewing ended (early stop after k "
+        "waypoints, or all), with the failure outcomes",
+    )
     p.add_argument("--json", type=Path, help="also write the comparison to this file")
     p.set_defaults(func=command)
     return p
@@ -202,7 +223,7 @@ def command(args: argparse.Namespace) -> int:
     except ValueError as exc:  # CompareError, and bad --level / --resamples
         print(f"heapgrasp bench compare: {exc}", file=sys.stderr)
         return 2
-    print(format_comparison(c))
+    print(format_comparison(c, details=args.breakdown))
     if args.json is not None:
         args.json.write_text(json.dumps(c, indent=2))
     return 0

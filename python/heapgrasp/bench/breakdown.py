@@ -1,0 +1,113 @@
+"""Where a run's grasps fail: success per band of the executed grasp's score, and per
+way the viewing ended (``heapgrasp bench compare --breakdown``).
+
+A success rate says how often a method's grasps hold; this says *which* grasps do not.
+Every attempted grasp of a run (a phase whose outcome is not ``no_candidate``) is
+counted twice:
+
+* by the band of its score (``target_grasp.score`` in the phase record: with the grasp
+  critic, its probability of success; :data:`SCORE_BANDS`) — whether a method fails
+  where its critic is sure, or executes more grasps the critic doubts;
+* by how its viewing ended (:func:`viewing`): HEAPGrasp's early stop
+  (``RunConfig.stop_below``) after k view waypoints, or every planned waypoint visited
+  (the fixed-view methods always visit theirs).
+
+Each cell holds the successes, the attempts, and the count of every failure outcome
+(``empty``, ``collision``, …).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+__all__ = ["SCORE_BANDS", "breakdown", "format_breakdown", "score_band", "viewing"]
+
+SCORE_BANDS = (0.0, 0.7, 0.8, 0.9, 0.95, 1.0)
+"""Edges of the score bands: ``[0, 0.7)``, …, ``[0.95, 1]`` (the last one closed)."""
+
+UNKNOWN = "no score"
+"""The band of a phase whose record holds no finite score of the executed grasp."""
+
+
+def score_band(score: object) -> str:
+    """The label of the band of :data:`SCORE_BANDS` that ``score`` falls in, or
+    :data:`UNKNOWN` for a missing or non-finite score. Scores outside [0, 1] (the
+    planner's own scale without a critic) fall in the first or the last band."""
+    if isinstance(score, bool) or not isinstance(score, int | float) or not math.isfinite(score):
+        return UNKNOWN
+    *inner, (lo, hi) = itertools.pairwise(SCORE_BANDS)
+    for a, b in inner:
+        if score < b:
+            return f"[{a:.2f}, {b:.2f})"
+    return f"[{lo:.2f}, {hi:.2f}]"
+
+
+def _band_order() -> list[str]:
+    bands = [score_band(lo) for lo in SCORE_BANDS[:-1]]
+    return [*bands, UNKNOWN]
+
+
+def viewing(phase: Mapping[str, Any]) -> str:
+    """How the phase's viewing ended: ``"stopped after k waypoint(s)"`` where HEAPGrasp's
+    early stop ended it (``stopped_early``), else ``"all waypoints"``."""
+    if phase.get("stopped_early"):
+        k = len(phase.get("waypoints") or [])
+        return f"stopped after {k} waypoint{'s' if k != 1 else ''}"
+    return "all waypoints"
+
+
+def _cell() -> dict[str, Any]:
+    return {"succeeded": 0, "attempted": 0, "outcomes": {}}
+
+
+def _add(cell: dict[str, Any], outcome: str) -> None:
+    cell["attempted"] += 1
+    if outcome == "success":
+        cell["succeeded"] += 1
+    else:
+        cell["outcomes"][outcome] = cell["outcomes"].get(outcome, 0) + 1
+
+
+def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, dict[str, Any]]]:
+    """Success per score band and per viewing over the attempted grasps of ``phases``
+    (phase records of ``scenes.jsonl``): ``{"score": {band: cell}, "viewing": {kind:
+    cell}}``, each cell ``{"succeeded", "attempted", "outcomes": {failure: count}}``.
+    Bands and kinds without an attempt are left out; bands come in ascending order.
+
+    Raises ``ValueError`` for a phase without an ``outcome``.
+    """
+    by_score: dict[str, dict[str, Any]] = {}
+    by_viewing: dict[str, dict[str, Any]] = {}
+    for i, phase in enumerate(phases):
+        outcome = phase.get("outcome")
+        if not isinstance(outcome, str):
+            raise ValueError(f"phase {i}: no outcome in the record (got {outcome!r})")
+        if outcome == "no_candidate":
+            continue
+        target = phase.get("target_grasp")
+        score = target.get("score") if isinstance(target, Mapping) else None
+        _add(by_score.setdefault(score_band(score), _cell()), outcome)
+        _add(by_viewing.setdefault(viewing(phase), _cell()), outcome)
+    order = {band: i for i, band in enumerate(_band_order())}
+    return {
+        "score": dict(sorted(by_score.items(), key=lambda kv: order[kv[0]])),
+        "viewing": dict(sorted(by_viewing.items())),
+    }
+
+
+def format_breakdown(name: str, b: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> str:
+    """The plain-text table of :func:`breakdown` for the run called ``name``."""
+    failures = sorted({o for part in b.values() for c in part.values() for o in c["outcomes"]})
+    head = f"{'':<28} {'success':>18}" + "".join(f" {o:>10}" for o in failures)
+    lines = [f"{name}: attempted grasps", head]
+    for title, key in (("by the grasp's score", "score"), ("by viewing", "viewing")):
+        lines.append(f"  {title}")
+        for label, cell in b[key].items():
+            k, n = cell["succeeded"], cell["attempted"]
+            rate = f"{k}/{n} ({100 * k / n:.1f} %)"
+            counts = "".join(f" {cell['outcomes'].get(o, 0):>10}" for o in failures)
+            lines.append(f"    {label:<26} {rate:>18}{counts}")
+    return "\n".join(lines)

@@ -1,0 +1,122 @@
+"""heapgrasp.bench.breakdown: where a run's grasps fail (bench compare --breakdown)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+from heapgrasp.bench.breakdown import SCORE_BANDS, breakdown, format_breakdown, score_band, viewing
+from heapgrasp.bench.compare import compare_runs
+from heapgrasp.cli import main
+
+
+def _phase(
+    outcome: str, score: float | None, *, stopped: bool = False, waypoints: int = 3
+) -> dict[str, Any]:
+    return {
+        "outcome": outcome,
+        "grasp_position": None if outcome == "no_candidate" else [0.1, 0.1, 0.05],
+        "trajectory_length_m": 1.0,
+        "target_grasp": None if score is None else {"score": score},
+        "stopped_early": {"worth_max": 0.0} if stopped else None,
+        "waypoints": [{}] * waypoints,
+    }
+
+
+@pytest.mark.parametrize(
+    ("score", "band"),
+    [
+        (0.0, "[0.00, 0.70)"),
+        (0.6999, "[0.00, 0.70)"),
+        (0.7, "[0.70, 0.80)"),
+        (0.9, "[0.90, 0.95)"),
+        (0.95, "[0.95, 1.00]"),
+        (1.0, "[0.95, 1.00]"),
+        (3.5, "[0.95, 1.00]"),  # the planner's own scale, without a critic
+        (-0.1, "[0.00, 0.70)"),
+        (None, "no score"),
+        (math.nan, "no score"),
+        (True, "no score"),
+        ("0.9", "no score"),
+    ],
+)
+def test_score_band(score: object, band: str) -> None:
+    assert score_band(score) == band
+
+
+def test_every_band_edge_starts_its_band() -> None:
+    labels = [score_band(lo) for lo in SCORE_BANDS[:-1]]
+    assert len(set(labels)) == len(SCORE_BANDS) - 1
+    assert all(
+        label.startswith(f"[{lo:.2f},") for label, lo in zip(labels, SCORE_BANDS[:-1], strict=True)
+    )
+
+
+def test_viewing_names_the_early_stop() -> None:
+    assert viewing(_phase("success", 0.9, stopped=True, waypoints=1)) == "stopped after 1 waypoint"
+    assert viewing(_phase("success", 0.9, stopped=True, waypoints=2)) == (
+        "stopped after 2 waypoints"
+    )
+    assert viewing(_phase("success", 0.9)) == "all waypoints"
+    assert viewing({"outcome": "success"}) == "all waypoints"  # a fixed-view record
+
+
+def test_breakdown_counts_each_attempt_once_per_table() -> None:
+    phases = [
+        _phase("success", 0.97, stopped=True, waypoints=1),
+        _phase("empty", 0.91, stopped=True, waypoints=1),
+        _phase("collision", 0.93, stopped=True, waypoints=2),
+        _phase("success", 0.92),
+        _phase("success", None),
+        _phase("no_candidate", None),  # not an attempt
+    ]
+    b = breakdown(phases)
+    assert list(b["score"]) == ["[0.90, 0.95)", "[0.95, 1.00]", "no score"]
+    assert b["score"]["[0.90, 0.95)"] == {
+        "succeeded": 1,
+        "attempted": 3,
+        "outcomes": {"empty": 1, "collision": 1},
+    }
+    assert b["score"]["no score"]["attempted"] == 1
+    assert b["viewing"]["stopped after 1 waypoint"] == {
+        "succeeded": 1,
+        "attempted": 2,
+        "outcomes": {"empty": 1},
+    }
+    assert b["viewing"]["all waypoints"]["succeeded"] == 2
+    for part in b.values():
+        assert sum(c["attempted"] for c in part.values()) == 5
+        assert sum(c["succeeded"] for c in part.values()) == 3
+    text = format_breakdown("A", b)
+    assert "stopped after 2 waypoints" in text and "0/1 (0.0 %)" in text
+    assert text.splitlines()[1].split() == ["success", "collision", "empty"]
+
+
+def test_breakdown_refuses_a_record_without_outcome() -> None:
+    with pytest.raises(ValueError, match=r"phase 1: no outcome in the record \(got None\)"):
+        breakdown([_phase("success", 0.9), {"target_grasp": {"score": 0.5}}])
+
+
+def test_compare_breakdown_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    def write(out: Path, phases: list[dict[str, Any]]) -> Path:
+        out.mkdir()
+        record = {"scene": 0, "seed": 3, "phases": phases}
+        (out / "scenes.jsonl").write_text(json.dumps(record) + "\n")
+        return out
+
+    a = write(tmp_path / "a", [_phase("success", 0.96, stopped=True, waypoints=1)])
+    b = write(tmp_path / "b", [_phase("empty", 0.85), _phase("success", 0.99)])
+    c = compare_runs(a, b)
+    assert c["b"]["breakdown"]["score"]["[0.80, 0.90)"]["outcomes"] == {"empty": 1}
+    assert main(["bench", "compare", str(a), str(b)]) == 0
+    assert "by viewing" not in capsys.readouterr().out
+    out = tmp_path / "c.json"
+    assert main(["bench", "compare", str(a), str(b), "--breakdown", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "A: attempted grasps" in text and "stopped after 1 waypoint" in text
+    assert "B: attempted grasps" in text and "1/2 (50.0 %)" in text
+    saved = json.loads(out.read_text())
+    assert saved["a"]["breakdown"]["viewing"]["stopped after 1 waypoint"]["succeeded"] == 1
