@@ -19,7 +19,14 @@ from heapgrasp.grasping.critic import (
     flip_pose,
     view_features,
 )
-from heapgrasp.grasping.critic_train import Design, auc, cross_validate, design_matrix, phase_picks
+from heapgrasp.grasping.critic_train import (
+    Design,
+    auc,
+    cross_validate,
+    design_matrix,
+    hull_kind,
+    phase_picks,
+)
 from heapgrasp.grasping.volumes import GraspCandidate, GridFrame
 from heapgrasp.pipeline import build_pipeline, make_critic
 from heapgrasp.sim.objects import ObjectLibrary
@@ -222,6 +229,19 @@ def test_phase_picks_on_hand_made_phases() -> None:
     strict = phase_picks(design, prob, threshold=0.85, epsilon=0.95)["heapgrasp_top_start"]
     assert strict["planner_no_candidate"] == 2 and strict["critic_no_candidate"] == 1
     assert strict["planner_pick_success"] is None
+
+
+def test_hull_kind_tells_early_stopped_hulls_apart() -> None:
+    assert hull_kind({}) == "heapgrasp"  # files written before --method existed
+    assert hull_kind({"method": np.str_("no-vp")}) == "no-vp"
+    stop = json.dumps({"gamma2": 0.0, "stop_below": 0.02})
+    assert hull_kind({"method": np.str_("heapgrasp"), "overrides": np.str_(stop)}) == (
+        "heapgrasp-stop"
+    )
+    assert hull_kind({"method": "heapgrasp", "overrides": json.dumps({"stop_below": 0})}) == (
+        "heapgrasp"
+    )
+    assert hull_kind({"method": "heapgrasp", "overrides": "{}"}) == "heapgrasp"
 
 
 def candidates_on_the_box() -> list[GraspCandidate]:

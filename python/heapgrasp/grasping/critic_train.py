@@ -13,6 +13,7 @@ threshold ε against those the critic keeps
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -29,6 +30,7 @@ __all__ = [
     "cross_validate",
     "design_matrix",
     "evaluation_report",
+    "hull_kind",
     "phase_picks",
 ]
 
@@ -49,6 +51,17 @@ class Design:
 
     def __len__(self) -> int:
         return len(self.labels) // 2
+
+
+def hull_kind(scene: dict[str, Any]) -> str:
+    """Whose hulls a scene file holds: its method (files written before ``--method``
+    existed are HEAPGrasp's), with ``-stop`` where its phases stopped viewing early
+    (``--set stop_below=...`` > 0), so that the picks are reported per kind of hull."""
+    method = str(scene["method"]) if "method" in scene else "heapgrasp"
+    overrides = json.loads(str(scene["overrides"])) if "overrides" in scene else {}
+    if float(overrides.get("stop_below", 0.0)) > 0.0:
+        return f"{method}-stop"
+    return method
 
 
 def design_matrix(scenes: Sequence[dict[str, Any]], frame: GridFrame) -> Design:
@@ -76,8 +89,7 @@ def design_matrix(scenes: Sequence[dict[str, Any]], frame: GridFrame) -> Design:
                 scene_ids.append(si)
                 phases.append(ph)
                 scores.append(float(s["score"][k]))
-                method = str(s["method"]) if "method" in s else "heapgrasp"
-                starts.append(f"{method}_{s['start']}")
+                starts.append(f"{hull_kind(s)}_{s['start']}")
     if not rows:
         raise ValueError("the critic's data has no candidates")
     return Design(
