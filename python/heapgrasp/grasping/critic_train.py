@@ -70,6 +70,7 @@ def design_matrix(scenes: Sequence[dict[str, Any]], frame: GridFrame) -> Design:
     rows, labels, scene_ids, phases, scores, starts = [], [], [], [], [], []
     for si, s in enumerate(scenes):
         bounds = np.concatenate([[0], np.cumsum(s["camera_counts"])])
+        tag = f"{hull_kind(s)}_{s['start']}"
         for k in range(len(s["phase"])):
             ph = int(s["phase"][k])
             cams = s["camera_positions"][bounds[ph] : bounds[ph + 1]]
@@ -89,7 +90,7 @@ def design_matrix(scenes: Sequence[dict[str, Any]], frame: GridFrame) -> Design:
                 scene_ids.append(si)
                 phases.append(ph)
                 scores.append(float(s["score"][k]))
-                starts.append(f"{hull_kind(s)}_{s['start']}")
+                starts.append(tag)
     if not rows:
         raise ValueError("the critic's data has no candidates")
     return Design(
