@@ -8,7 +8,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from heapgrasp.bench.breakdown import SCORE_BANDS, breakdown, format_breakdown, score_band, viewing
+from heapgrasp.bench.breakdown import (
+    SCORE_BANDS,
+    breakdown,
+    collision_kind,
+    format_breakdown,
+    score_band,
+    viewing,
+)
 from heapgrasp.bench.compare import compare_runs
 from heapgrasp.cli import main
 
@@ -87,12 +94,41 @@ def test_breakdown_counts_each_attempt_once_per_table() -> None:
         "outcomes": {"empty": 1},
     }
     assert b["viewing"]["all waypoints"]["succeeded"] == 2
-    for part in b.values():
+    for key in ("score", "viewing"):
+        part = b[key]
         assert sum(c["attempted"] for c in part.values()) == 5
         assert sum(c["succeeded"] for c in part.values()) == 3
     text = format_breakdown("A", b)
     assert "stopped after 2 waypoints" in text and "0/1 (0.0 %)" in text
     assert text.splitlines()[1].split() == ["success", "collision", "empty"]
+    assert b["collisions"] == {"not recorded": 1}
+
+
+def test_collisions_are_counted_by_what_the_hand_touched() -> None:
+    def hit(stage: str | None, touched: list[str]) -> dict[str, Any]:
+        return {**_phase("collision", 0.9), "collision": {"stage": stage, "touched": touched}}
+
+    phases = [
+        hit("approach", ["object", "target"]),
+        hit("approach", ["object", "target"]),
+        hit("pregrasp", ["table"]),
+        hit(None, []),
+        _phase("collision", 0.9),  # a record from before contacts were kept
+        {**_phase("empty", 0.9), "collision": {"stage": "approach", "touched": ["table"]}},
+    ]
+    assert collision_kind(phases[0]) == "approach: object+target"
+    assert collision_kind(phases[3]) == "unknown: nothing"
+    b = breakdown(phases)
+    assert b["collisions"] == {
+        "approach: object+target": 2,
+        "not recorded": 1,
+        "pregrasp: table": 1,
+        "unknown: nothing": 1,
+    }
+    text = format_breakdown("A", b)
+    assert "collisions, by where and what the hand touched" in text
+    assert "approach: object+target" in text
+    assert "collisions" not in format_breakdown("A", breakdown([_phase("success", 0.9)]))
 
 
 def test_breakdown_refuses_a_record_without_outcome() -> None:

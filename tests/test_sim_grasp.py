@@ -9,6 +9,7 @@ import pytest
 from conftest import box_model
 from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand, execute_grasp
 from heapgrasp.sim.objects import ObjectLibrary
+from heapgrasp.sim.protocol import touched_labels
 from heapgrasp.sim.world import SimWorld
 
 TOP_DOWN = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # TCP z pointing down
@@ -56,6 +57,34 @@ def test_grasp_through_the_table_collides(world_with_box: tuple[SimWorld, int]) 
         hand = PandaHand(world)
         result = execute_grasp(hand, Grasp(tcp((0.05, 0.25, -0.03)), width=0.07))
         assert result.outcome == GraspOutcome.COLLISION
+        assert result.stage == "approach" and world.table in result.touched
+        assert touched_labels(world, result.touched, None) == ["table"]
+
+
+def test_a_hand_inside_the_object_collides_at_the_pregrasp(
+    world_with_box: tuple[SimWorld, int],
+) -> None:
+    world, oid = world_with_box
+    with world:
+        x, y, z = world.object_pose(oid)[:3, 3]
+        hand = PandaHand(world)
+        # The pre-grasp pose (5 cm back, above) puts the closed fingers in the box.
+        result = execute_grasp(hand, Grasp(tcp((x, y, z - 0.05)), width=0.0))
+        assert result.outcome == GraspOutcome.COLLISION, result
+        assert result.stage == "pregrasp"
+        body = world.objects[oid].body
+        assert body in result.touched
+        assert touched_labels(world, result.touched, oid) == ["target"]
+        assert touched_labels(world, result.touched, None) == ["object"]
+        assert touched_labels(world, {10_000}, None) == ["other"]
+
+
+def test_successes_record_no_contact(world_with_box: tuple[SimWorld, int]) -> None:
+    world, oid = world_with_box
+    with world:
+        x, y, z = world.object_pose(oid)[:3, 3]
+        result = execute_grasp(PandaHand(world), Grasp(tcp((x, y, z)), width=0.07))
+        assert result.success and result.touched == frozenset() and result.stage is None
 
 
 def test_bad_grasps_are_rejected() -> None:

@@ -13,7 +13,8 @@ counted twice:
   (the fixed-view methods always visit theirs).
 
 Each cell holds the successes, the attempts, and the count of every failure outcome
-(``empty``, ``collision``, …).
+(``empty``, ``collision``, …). The collisions are also counted by what the hand touched
+and where (:func:`collision_kind`).
 """
 
 from __future__ import annotations
@@ -23,7 +24,14 @@ import math
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-__all__ = ["SCORE_BANDS", "breakdown", "format_breakdown", "score_band", "viewing"]
+__all__ = [
+    "SCORE_BANDS",
+    "breakdown",
+    "collision_kind",
+    "format_breakdown",
+    "score_band",
+    "viewing",
+]
 
 SCORE_BANDS = (0.0, 0.7, 0.8, 0.9, 0.95, 1.0)
 """Edges of the score bands: ``[0, 0.7)``, …, ``[0.95, 1]`` (the last one closed)."""
@@ -59,6 +67,18 @@ def viewing(phase: Mapping[str, Any]) -> str:
     return "all waypoints"
 
 
+def collision_kind(phase: Mapping[str, Any]) -> str:
+    """What a collision touched and where: ``"<stage>: <touched>"``, e.g. ``"approach:
+    object+target"`` (the phase record's ``collision``, written since the hand reports
+    its contacts), or ``"not recorded"`` for records from before that."""
+    record = phase.get("collision")
+    if not isinstance(record, Mapping):
+        return "not recorded"
+    touched = record.get("touched") or []
+    what = "+".join(str(t) for t in touched) if touched else "nothing"
+    return f"{record.get('stage') or 'unknown'}: {what}"
+
+
 def _cell() -> dict[str, Any]:
     return {"succeeded": 0, "attempted": 0, "outcomes": {}}
 
@@ -71,16 +91,18 @@ def _add(cell: dict[str, Any], outcome: str) -> None:
         cell["outcomes"][outcome] = cell["outcomes"].get(outcome, 0) + 1
 
 
-def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, dict[str, Any]]]:
+def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
     """Success per score band and per viewing over the attempted grasps of ``phases``
     (phase records of ``scenes.jsonl``): ``{"score": {band: cell}, "viewing": {kind:
-    cell}}``, each cell ``{"succeeded", "attempted", "outcomes": {failure: count}}``.
+    cell}, "collisions": {kind: count}}``, each cell ``{"succeeded", "attempted",
+    "outcomes": {failure: count}}``, each collision kind from :func:`collision_kind`.
     Bands and kinds without an attempt are left out; bands come in ascending order.
 
     Raises ``ValueError`` for a phase without an ``outcome``.
     """
     by_score: dict[str, dict[str, Any]] = {}
     by_viewing: dict[str, dict[str, Any]] = {}
+    collisions: dict[str, int] = {}
     for i, phase in enumerate(phases):
         outcome = phase.get("outcome")
         if not isinstance(outcome, str):
@@ -91,16 +113,21 @@ def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, dict[s
         score = target.get("score") if isinstance(target, Mapping) else None
         _add(by_score.setdefault(score_band(score), _cell()), outcome)
         _add(by_viewing.setdefault(viewing(phase), _cell()), outcome)
+        if outcome == "collision":
+            kind = collision_kind(phase)
+            collisions[kind] = collisions.get(kind, 0) + 1
     order = {band: i for i, band in enumerate(_band_order())}
     return {
         "score": dict(sorted(by_score.items(), key=lambda kv: order[kv[0]])),
         "viewing": dict(sorted(by_viewing.items())),
+        "collisions": dict(sorted(collisions.items(), key=lambda kv: (-kv[1], kv[0]))),
     }
 
 
-def format_breakdown(name: str, b: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> str:
+def format_breakdown(name: str, b: Mapping[str, Mapping[str, Any]]) -> str:
     """The plain-text table of :func:`breakdown` for the run called ``name``."""
-    failures = sorted({o for part in b.values() for c in part.values() for o in c["outcomes"]})
+    cells = [c for key in ("score", "viewing") for c in b[key].values()]
+    failures = sorted({o for c in cells for o in c["outcomes"]})
     head = f"{'':<28} {'success':>18}" + "".join(f" {o:>10}" for o in failures)
     lines = [f"{name}: attempted grasps", head]
     for title, key in (("by the grasp's score", "score"), ("by viewing", "viewing")):
@@ -110,4 +137,8 @@ def format_breakdown(name: str, b: Mapping[str, Mapping[str, Mapping[str, Any]]]
             rate = f"{k}/{n} ({100 * k / n:.1f} %)"
             counts = "".join(f" {cell['outcomes'].get(o, 0):>10}" for o in failures)
             lines.append(f"    {label:<26} {rate:>18}{counts}")
+    collisions = b.get("collisions") or {}
+    if collisions:
+        lines.append("  collisions, by where and what the hand touched")
+        lines.extend(f"    {kind:<26} {n:>18}" for kind, n in collisions.items())
     return "\n".join(lines)

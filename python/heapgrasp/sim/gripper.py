@@ -136,6 +136,11 @@ class GraspResult:
     """World id of the object held after lifting, if any."""
     duration: float
     """Simulated time of the whole attempt (s)."""
+    touched: frozenset[int] = frozenset()
+    """For a collision: the PyBullet bodies the hand touched when it stopped."""
+    stage: str | None = None
+    """For a collision: ``"pregrasp"`` (touching at the pre-grasp pose) or
+    ``"approach"`` (on the way from there to the grasp pose)."""
 
     @property
     def success(self) -> bool:
@@ -289,12 +294,17 @@ def execute_grasp(
         hand.park()
         return GraspResult(GraspOutcome.UNREACHABLE, None, hand.time - t0)
     hand.step(2)
-    if hand.contacts():
+    if touched := hand.contacts():
         hand.park()
-        return GraspResult(GraspOutcome.COLLISION, None, hand.time - t0)
+        return GraspResult(
+            GraspOutcome.COLLISION, None, hand.time - t0, frozenset(touched), "pregrasp"
+        )
     if not hand.move_linear(grasp.pose, abort_on_contact=True):
+        touched = hand.contacts()
         hand.park()
-        return GraspResult(GraspOutcome.COLLISION, None, hand.time - t0)
+        return GraspResult(
+            GraspOutcome.COLLISION, None, hand.time - t0, frozenset(touched), "approach"
+        )
     hand.close()
     lift = translate(0.0, 0.0, lift_height) @ grasp.pose
     hand.move_linear(lift, speed=0.2)

@@ -9,7 +9,7 @@ leaves the scene.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
@@ -28,6 +28,7 @@ __all__ = [
     "run_clutter_removal",
     "stop_reason",
     "top_down_grasp",
+    "touched_labels",
 ]
 
 #: TCP pose above the bin (beside the workspace, -y side), pointing down.
@@ -112,6 +113,22 @@ def top_down_grasp(world: SimWorld, object_id: int, width: float = 0.08) -> Gras
     return Grasp(tcp, width)
 
 
+def touched_labels(world: SimWorld, bodies: Iterable[int], target: int | None) -> list[str]:
+    """What a collision touched, by name: ``"table"``, ``"target"`` (the object the grasp
+    was planned on, :attr:`PlanResult.target_object`), ``"object"`` (another object) or
+    ``"other"``; sorted, without repeats."""
+    by_body = {obj.body: oid for oid, obj in world.objects.items()}
+    labels: set[str] = set()
+    for body in bodies:
+        if body == world.table:
+            labels.add("table")
+        elif body in by_body:
+            labels.add("target" if by_body[body] == target else "object")
+        else:
+            labels.add("other")
+    return sorted(labels)
+
+
 def place_in_bin(hand: Robot, object_id: int) -> float:
     """Carries the held object to the bin, drops it, and removes it from the world.
     Returns the simulated time spent (s)."""
@@ -180,6 +197,12 @@ def run_clutter_removal(
             consecutive += 1
             total_failures += 1
             hand.park()
+        extra = dict(planned.extra)
+        if result.outcome == GraspOutcome.COLLISION:
+            extra["collision"] = {
+                "stage": result.stage,
+                "touched": touched_labels(world, result.touched, planned.target_object),
+            }
         phases.append(
             Phase(
                 camera_positions=planned.camera_positions,
@@ -189,6 +212,6 @@ def run_clutter_removal(
                 compute_time=compute,
                 category=category,
                 object_id=target,
-                extra=planned.extra,
+                extra=extra,
             )
         )
