@@ -42,6 +42,7 @@ def test_defaults_are_table_one() -> None:
         ({"stop_below": -0.1}, r"stop_below: must be in \[0.0, 1.0\]; got -0.1"),
         ({"stop_confidence": 2.0}, r"stop_confidence: must be in \[0.0, 1.0\]; got 2.0"),
         ({"stop_detour_weight": -1.0}, r"stop_detour_weight: must be in \[0.0, 100.0\]"),
+        ({"move_weight": float("nan")}, r"move_weight: must be in \[0.0, 100.0\]"),
         ({"stop_after": 0}, "stop_after: must be an integer >= 1; got 0"),
         ({"lamda": 0.9}, "unknown parameter 'lamda'"),
         ({"Theta-Max": 0.5}, "did you mean 'theta_max'"),

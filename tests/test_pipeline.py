@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 from typing import Any
@@ -169,6 +170,30 @@ def test_with_gamma2_zero_no_grasp_is_planned_before_the_final_grid(tmp_path: Pa
     assert all(w["target"] is None and w["grasp_candidates"] is None for w in waypoints)
     assert views.targets == [None, None, None]
     assert result.grasp is not None and result.grasp.pose[0, 3] == pytest.approx(0.07)
+
+
+def test_move_weight_takes_the_nearer_of_equally_good_views(tmp_path: Path) -> None:
+    # Every view scores the same (but the nearest ones, which see nothing new): without
+    # move_weight eq. 18 takes the first of them, with it the nearest; the path shrinks.
+    model = box_model(tmp_path, BOX)
+    script = [[_candidate(0.07, 0.99)]]  # gamma2 = 0: only the final grid is planned
+
+    def legs(result: PlanResult) -> list[float]:
+        points = [result.camera_positions[0]]
+        points += [np.asarray(w["position"]) for w in result.extra["waypoints"]]
+        return [float(np.linalg.norm(b - a)) for a, b in itertools.pairwise(points)]
+
+    plain, _ = _plan_scripted(model, RunConfig(gamma2=0.0), script, view_level=0.1)
+    config = RunConfig(gamma2=0.0, move_weight=0.05)
+    near, _ = _plan_scripted(model, config, script, view_level=0.1)
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        pipeline = build_pipeline(config, world, view_scorer=_ScriptedViews())
+        p0 = pipeline.initial_pose()[:3, 3]
+        gaps = np.linalg.norm(pipeline.candidates[..., :3, 3] - p0, axis=-1)
+    # the nearest candidates score 0 (they see nothing new): the next ring is taken
+    assert legs(near)[0] == pytest.approx(float(np.min(gaps[gaps > gaps.min() + 1e-3])))
+    assert sum(legs(near)) < sum(legs(plain))
+    assert all(w["view_score"] == pytest.approx(0.1) for w in near.extra["waypoints"])
 
 
 def test_with_gamma2_at_p0_the_grasp_at_p0_is_planned_and_anchors_eq16(tmp_path: Path) -> None:

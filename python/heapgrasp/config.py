@@ -160,6 +160,11 @@ class RunConfig:
     """In the ``stop_below`` test, a candidate's score on the target's region is first
     lessened by this weight (per metre) times the path it adds on the way to the grasp
     (:func:`heapgrasp.selection.detour`): a look must be worth its detour."""
+    move_weight: float = 0.0
+    """Eq. 18's choice of the next view waypoint maximises ``s + γ2 h`` less this weight
+    (per metre) times the length of the move to the candidate: a far look must be worth
+    its path (eq. 7's ``α d_space``, here per move; not in the paper's eq. 18). 0 (the
+    paper) ignores the path."""
     stop_after: int = 1
     """The fewest view waypoints a phase visits before ``stop_below`` may end its
     viewing."""
@@ -293,6 +298,7 @@ class RunConfig:
         between("stop_below", 0.0, 1.0)
         between("stop_confidence", 0.0, 1.0)
         between("stop_detour_weight", 0.0, 100.0)
+        between("move_weight", 0.0, 100.0)
         if self.sigma is not None:
             between("sigma", 0.0, 100.0)
         between("initial_phi", -4 * math.pi, 4 * math.pi)

@@ -342,8 +342,12 @@ class Pipeline:
         if scores is None:
             scores = self.view_scorer.scores(ctx)
         t2 = time.perf_counter()
+        objective = scores
+        if cfg.move_weight > 0.0:
+            move = np.linalg.norm(self.candidates[..., :3, 3] - phase.current[:3, 3], axis=-1)
+            objective = scores - cfg.move_weight * move
         u, v = select_next_waypoint(
-            scores,
+            objective,
             self.candidates,
             phase.current,
             None if target is None else target.pose,
