@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -32,6 +33,7 @@ from heapgrasp.sim.world import SimWorld
 
 __all__ = [
     "MAX_OPENING",
+    "CollisionStage",
     "Grasp",
     "GraspOutcome",
     "GraspResult",
@@ -127,6 +129,10 @@ class GraspOutcome(StrEnum):
     """The arm cannot reach the pre-grasp or grasp pose (arm mode only)."""
 
 
+CollisionStage = Literal["pregrasp", "approach"]
+"""Where a grasp attempt touched something (:attr:`GraspResult.stage`)."""
+
+
 @dataclass(frozen=True)
 class GraspResult:
     """Outcome of :func:`execute_grasp`."""
@@ -138,7 +144,7 @@ class GraspResult:
     """Simulated time of the whole attempt (s)."""
     touched: frozenset[int] = frozenset()
     """For a collision: the PyBullet bodies the hand touched when it stopped."""
-    stage: str | None = None
+    stage: CollisionStage | None = None
     """For a collision: ``"pregrasp"`` (touching at the pre-grasp pose) or
     ``"approach"`` (on the way from there to the grasp pose)."""
 
