@@ -105,8 +105,13 @@ def test_breakdown_counts_each_attempt_once_per_table() -> None:
 
 
 def test_collisions_are_counted_by_what_the_hand_touched() -> None:
-    def hit(stage: str | None, touched: list[str]) -> dict[str, Any]:
-        return {**_phase("collision", 0.9), "collision": {"stage": stage, "touched": touched}}
+    def hit(
+        stage: str | None, touched: list[str], parts: list[str] | None = None
+    ) -> dict[str, Any]:
+        record: dict[str, Any] = {"stage": stage, "touched": touched}
+        if parts is not None:
+            record["parts"] = parts
+        return {**_phase("collision", 0.9), "collision": record}
 
     phases = [
         hit("approach", ["object", "target"]),
@@ -115,19 +120,27 @@ def test_collisions_are_counted_by_what_the_hand_touched() -> None:
         hit(None, []),
         _phase("collision", 0.9),  # a record from before contacts were kept
         {**_phase("empty", 0.9), "collision": {"stage": "approach", "touched": ["table"]}},
+        hit("approach", ["target"], ["palm"]),
+        hit("approach", ["object", "target"], ["finger", "palm"]),
+        hit("approach", ["target"], []),  # no part seen: as before parts were kept
     ]
     assert collision_kind(phases[0]) == "approach: object+target"
     assert collision_kind(phases[3]) == "unknown: nothing"
+    assert collision_kind(phases[6]) == "approach: target (palm)"
+    assert collision_kind(phases[7]) == "approach: object+target (finger+palm)"
     b = breakdown(phases)
     assert b["collisions"] == {
         "approach: object+target": 2,
+        "approach: object+target (finger+palm)": 1,
+        "approach: target": 1,
+        "approach: target (palm)": 1,
         "not recorded": 1,
         "pregrasp: table": 1,
         "unknown: nothing": 1,
     }
     text = format_breakdown("A", b)
-    assert "collisions, by where and what the hand touched" in text
-    assert "approach: object+target" in text
+    assert "collisions, by where and what the hand touched (with which part)" in text
+    assert "approach: object+target (finger+palm)" in text
     assert "collisions" not in format_breakdown("A", breakdown([_phase("success", 0.9)]))
 
 

@@ -159,6 +159,7 @@ def test_park_is_out_of_the_scene_and_nothing_is_touched(arm: PandaArm) -> None:
     assert (x < -0.1 or y > 0.4) and z > 0.3
     arm.step(24)  # the base stands on the table: that is no contact
     assert arm.contacts() == set() and arm.held_object() is None
+    assert arm.touching_parts() == set()
     assert arm.width() == pytest.approx(0.08, abs=1e-3)
 
 
@@ -190,6 +191,18 @@ def test_grasp_in_empty_space_and_through_the_table(box_world: tuple[SimWorld, i
     assert result.outcome == GraspOutcome.EMPTY and result.object_id is None
     result = execute_grasp(arm, Grasp(top_down(0.05, 0.25, -0.03), width=0.07))
     assert result.outcome == GraspOutcome.COLLISION
+    assert result.parts == frozenset({"finger"})  # the fingertips reach the table first
+
+
+def test_a_palm_on_the_box_is_reported(box_world: tuple[SimWorld, int]) -> None:
+    # Fingers opened past the box, the TCP planned so deep that the hand lands on it.
+    world, oid = box_world
+    x, y, z = world.object_pose(oid)[:3, 3]
+    arm = PandaArm(world)
+    top = z + 0.025  # the 5 cm box's top; the hand's face is 3.9 cm behind the TCP
+    result = execute_grasp(arm, Grasp(top_down(x, y, top - 0.044), width=0.07))
+    assert result.outcome == GraspOutcome.COLLISION, result
+    assert result.parts == frozenset({"palm"})
 
 
 def test_move_linear_is_physical(box_world: tuple[SimWorld, int]) -> None:

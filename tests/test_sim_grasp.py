@@ -59,6 +59,22 @@ def test_grasp_through_the_table_collides(world_with_box: tuple[SimWorld, int]) 
         assert result.outcome == GraspOutcome.COLLISION
         assert result.stage == "approach" and world.table in result.touched
         assert touched_labels(world, result.touched, None) == ["table"]
+        assert result.parts == frozenset({"finger"})  # the fingertips reach it first
+
+
+def test_a_palm_that_lands_on_the_object_is_reported(
+    world_with_box: tuple[SimWorld, int],
+) -> None:
+    # The fingers, opened wider than the 5 cm box, pass beside it; the TCP is planned
+    # so deep that the hand's front face comes down on the box's top first.
+    world, oid = world_with_box
+    with world:
+        x, y, _ = world.object_pose(oid)[:3, 3]
+        result = execute_grasp(PandaHand(world), Grasp(tcp((x, y, 0.006)), width=0.07))
+        assert result.outcome == GraspOutcome.COLLISION, result
+        assert result.stage == "approach"
+        assert touched_labels(world, result.touched, oid) == ["target"]
+        assert result.parts == frozenset({"palm"})
 
 
 def test_a_hand_inside_the_object_collides_at_the_pregrasp(
@@ -77,6 +93,7 @@ def test_a_hand_inside_the_object_collides_at_the_pregrasp(
         assert touched_labels(world, result.touched, oid) == ["target"]
         assert touched_labels(world, result.touched, None) == ["object"]
         assert touched_labels(world, {10_000}, None) == ["other"]
+        assert result.parts and result.parts <= {"palm", "finger"}
 
 
 def test_successes_record_no_contact(world_with_box: tuple[SimWorld, int]) -> None:
@@ -85,6 +102,7 @@ def test_successes_record_no_contact(world_with_box: tuple[SimWorld, int]) -> No
         x, y, z = world.object_pose(oid)[:3, 3]
         result = execute_grasp(PandaHand(world), Grasp(tcp((x, y, z)), width=0.07))
         assert result.success and result.touched == frozenset() and result.stage is None
+        assert result.parts == frozenset()
 
 
 def test_bad_grasps_are_rejected() -> None:

@@ -68,15 +68,21 @@ def viewing(phase: Mapping[str, Any]) -> str:
 
 
 def collision_kind(phase: Mapping[str, Any]) -> str:
-    """What a collision touched and where: ``"<stage>: <touched>"``, e.g. ``"approach:
-    object+target"`` (the phase record's ``collision``, written since the hand reports
-    its contacts), or ``"not recorded"`` for records from before that."""
+    """What a collision touched, where, and with which part of the hand: ``"<stage>:
+    <touched> (<parts>)"``, e.g. ``"approach: object+target (palm)"`` (the phase
+    record's ``collision``, written since the hand reports its contacts; records from
+    before the parts were recorded leave them out), or ``"not recorded"`` for records
+    from before that."""
     record = phase.get("collision")
     if not isinstance(record, Mapping):
         return "not recorded"
     touched = record.get("touched") or []
     what = "+".join(str(t) for t in touched) if touched else "nothing"
-    return f"{record.get('stage') or 'unknown'}: {what}"
+    kind = f"{record.get('stage') or 'unknown'}: {what}"
+    parts = record.get("parts")
+    if parts:
+        kind += f" ({'+'.join(str(p) for p in parts)})"
+    return kind
 
 
 def _cell() -> dict[str, Any]:
@@ -139,6 +145,7 @@ def format_breakdown(name: str, b: Mapping[str, Mapping[str, Any]]) -> str:
             lines.append(f"    {label:<26} {rate:>18}{counts}")
     collisions = b.get("collisions") or {}
     if collisions:
-        lines.append("  collisions, by where and what the hand touched")
-        lines.extend(f"    {kind:<26} {n:>18}" for kind, n in collisions.items())
+        lines.append("  collisions, by where and what the hand touched (with which part)")
+        width = max(26, *(len(kind) for kind in collisions))
+        lines.extend(f"    {kind:<{width}} {n:>18}" for kind, n in collisions.items())
     return "\n".join(lines)

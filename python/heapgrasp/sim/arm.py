@@ -69,7 +69,7 @@ import pybullet_data
 
 from heapgrasp import HeapgraspError
 from heapgrasp.sim.fingers import MAX_OPENING, Fingers
-from heapgrasp.sim.gripper import TCP_OFFSET, translate
+from heapgrasp.sim.gripper import TCP_OFFSET, HandPart, translate
 from heapgrasp.sim.motion import MotionLimits, TimedPath
 from heapgrasp.sim.world import SimWorld, _pose, _split_pose
 
@@ -1085,6 +1085,23 @@ class PandaArm(Fingers):
         base link standing on the table does not count, nor does the arm itself."""
         pts = pb.getContactPoints(bodyA=self.body, physicsClientId=self.client)
         return {int(p[2]) for p in pts if p[2] != self.body and p[3] != -1}
+
+    def touching_parts(self) -> set[HandPart]:
+        """Which of the arm's moving links touch another body: ``"palm"`` (the hand),
+        ``"finger"`` or ``"arm"`` (any link above the hand)."""
+        pts = pb.getContactPoints(bodyA=self.body, physicsClientId=self.client)
+        parts: set[HandPart] = set()
+        for p in pts:
+            if p[2] == self.body or p[3] == -1:
+                continue
+            link = int(p[3])
+            if link in self.finger_joints:
+                parts.add("finger")
+            elif link == self._hand_link:
+                parts.add("palm")
+            else:
+                parts.add("arm")
+        return parts
 
 
 # --------------------------------------------------------------------------- timing

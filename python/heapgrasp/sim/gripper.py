@@ -37,6 +37,7 @@ __all__ = [
     "Grasp",
     "GraspOutcome",
     "GraspResult",
+    "HandPart",
     "PandaHand",
     "execute_grasp",
 ]
@@ -132,6 +133,10 @@ class GraspOutcome(StrEnum):
 CollisionStage = Literal["pregrasp", "approach"]
 """Where a grasp attempt touched something (:attr:`GraspResult.stage`)."""
 
+HandPart = Literal["palm", "finger", "arm"]
+"""Which part of the robot touched something (:attr:`GraspResult.parts`): the hand's
+body (``"palm"``), a finger, or (arm mode) a link of the arm above the hand."""
+
 
 @dataclass(frozen=True)
 class GraspResult:
@@ -147,6 +152,8 @@ class GraspResult:
     stage: CollisionStage | None = None
     """For a collision: ``"pregrasp"`` (touching at the pre-grasp pose) or
     ``"approach"`` (on the way from there to the grasp pose)."""
+    parts: frozenset[HandPart] = frozenset()
+    """For a collision: the parts of the robot that touched (:meth:`PandaHand.touching_parts`)."""
 
     @property
     def success(self) -> bool:
@@ -245,6 +252,12 @@ class PandaHand(Fingers):
         pts = pb.getContactPoints(bodyA=self.body, physicsClientId=self.client)
         return {int(p[2]) for p in pts if p[2] != self.body}
 
+    def touching_parts(self) -> set[HandPart]:
+        """The parts of the hand touching another body: ``"palm"`` (the hand's base
+        link) and ``"finger"``."""
+        pts = pb.getContactPoints(bodyA=self.body, physicsClientId=self.client)
+        return {"palm" if p[3] == -1 else "finger" for p in pts if p[2] != self.body}
+
     def move_linear(
         self, target: FloatArray, *, speed: float = 0.1, abort_on_contact: bool = False
     ) -> bool:
@@ -301,15 +314,17 @@ def execute_grasp(
         return GraspResult(GraspOutcome.UNREACHABLE, None, hand.time - t0)
     hand.step(2)
     if touched := hand.contacts():
+        parts = frozenset(hand.touching_parts())
         hand.park()
         return GraspResult(
-            GraspOutcome.COLLISION, None, hand.time - t0, frozenset(touched), "pregrasp"
+            GraspOutcome.COLLISION, None, hand.time - t0, frozenset(touched), "pregrasp", parts
         )
     if not hand.move_linear(grasp.pose, abort_on_contact=True):
         touched = hand.contacts()
+        parts = frozenset(hand.touching_parts())
         hand.park()
         return GraspResult(
-            GraspOutcome.COLLISION, None, hand.time - t0, frozenset(touched), "approach"
+            GraspOutcome.COLLISION, None, hand.time - t0, frozenset(touched), "approach", parts
         )
     hand.close()
     lift = translate(0.0, 0.0, lift_height) @ grasp.pose

@@ -202,6 +202,7 @@ def run_clutter_removal(
             extra["collision"] = {
                 "stage": result.stage,
                 "touched": touched_labels(world, result.touched, planned.target_object),
+                "parts": sorted(result.parts),
             }
         phases.append(
             Phase(

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 if TYPE_CHECKING:
+    from heapgrasp.sim.gripper import HandPart
     from heapgrasp.sim.world import SimWorld
 
 __all__ = ["CameraMount", "Robot"]
@@ -84,6 +85,11 @@ class Robot(CameraMount, Protocol):
 
     def contacts(self) -> set[int]:
         """PyBullet ids of the bodies the gripper touches."""
+        ...
+
+    def touching_parts(self) -> set[HandPart]:
+        """Which parts of the robot touch another body (``"palm"``, ``"finger"``,
+        ``"arm"``)."""
         ...
 
     def held_object(self) -> int | None:
