@@ -11,8 +11,10 @@ import pytest
 from heapgrasp.bench.breakdown import (
     SCORE_BANDS,
     breakdown,
+    candidates,
     collision_kind,
     format_breakdown,
+    objects_left,
     score_band,
     viewing,
 )
@@ -71,6 +73,32 @@ def test_viewing_names_the_early_stop() -> None:
     assert viewing({"outcome": "success"}) == "all waypoints"  # a fixed-view record
 
 
+def test_candidates_counts_the_grid_the_grasp_came_from() -> None:
+    assert candidates({"final_candidates": 1}) == "1 candidate"
+    assert candidates({"final_candidates": 2}) == "2 candidates"
+    assert candidates({"final_candidates": 7}) == "3+ candidates"
+    # Where the viewing stopped early, the grasps planned there are the final grid's.
+    stopped = {"stopped_early": {"grasp_candidates": 1}, "final_candidates": 4}
+    assert candidates(stopped) == "1 candidate"
+    assert candidates({"stopped_early": {"grasp_candidates": None}, "final_candidates": 2}) == (
+        "2 candidates"
+    )
+    for record in (
+        {},
+        {"final_candidates": 0},
+        {"final_candidates": True},
+        {"final_candidates": "1"},
+    ):
+        assert candidates(record) == "not recorded"
+
+
+def test_objects_left_names_the_clutter() -> None:
+    assert objects_left({"objects_left": 5}) == "5 objects"
+    assert objects_left({"objects_left": 1}) == "1 object"
+    for record in ({}, {"objects_left": -1}, {"objects_left": True}, {"objects_left": 2.0}):
+        assert objects_left(record) == "not recorded"
+
+
 def test_breakdown_counts_each_attempt_once_per_table() -> None:
     phases = [
         _phase("success", 0.97, stopped=True, waypoints=1),
@@ -94,7 +122,9 @@ def test_breakdown_counts_each_attempt_once_per_table() -> None:
         "outcomes": {"empty": 1},
     }
     assert b["viewing"]["all waypoints"]["succeeded"] == 2
-    for key in ("score", "viewing"):
+    assert b["candidates"] == {"not recorded": b["candidates"]["not recorded"]}
+    assert list(b["objects"]) == ["not recorded"]
+    for key in ("score", "viewing", "candidates", "objects"):
         part = b[key]
         assert sum(c["attempted"] for c in part.values()) == 5
         assert sum(c["succeeded"] for c in part.values()) == 3
@@ -152,20 +182,28 @@ def test_breakdown_refuses_a_record_without_outcome() -> None:
 def test_compare_breakdown_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     def write(out: Path, phases: list[dict[str, Any]]) -> Path:
         out.mkdir()
-        record = {"scene": 0, "seed": 3, "phases": phases}
+        record = {"scene": 0, "seed": 3, "objects_total": 3, "phases": phases}
         (out / "scenes.jsonl").write_text(json.dumps(record) + "\n")
         return out
 
     a = write(tmp_path / "a", [_phase("success", 0.96, stopped=True, waypoints=1)])
-    b = write(tmp_path / "b", [_phase("empty", 0.85), _phase("success", 0.99)])
+    lone = {**_phase("success", 0.99), "final_candidates": 1}
+    b = write(tmp_path / "b", [_phase("empty", 0.85), lone, _phase("success", 0.9)])
     c = compare_runs(a, b)
     assert c["b"]["breakdown"]["score"]["[0.80, 0.90)"]["outcomes"] == {"empty": 1}
+    # The scene's objects_total (3): a failure leaves them all, a success takes one.
+    assert c["b"]["breakdown"]["objects"] == {
+        "3 objects": {"succeeded": 1, "attempted": 2, "outcomes": {"empty": 1}},
+        "2 objects": {"succeeded": 1, "attempted": 1, "outcomes": {}},
+    }
+    assert c["b"]["breakdown"]["candidates"]["1 candidate"]["succeeded"] == 1
     assert main(["bench", "compare", str(a), str(b)]) == 0
     assert "by viewing" not in capsys.readouterr().out
     out = tmp_path / "c.json"
     assert main(["bench", "compare", str(a), str(b), "--breakdown", "--json", str(out)]) == 0
     text = capsys.readouterr().out
     assert "A: attempted grasps" in text and "stopped after 1 waypoint" in text
-    assert "B: attempted grasps" in text and "1/2 (50.0 %)" in text
+    assert "B: attempted grasps" in text and "2/3 (66.7 %)" in text
+    assert "by the objects on the table" in text and "3 objects" in text
     saved = json.loads(out.read_text())
     assert saved["a"]["breakdown"]["viewing"]["stopped after 1 waypoint"]["succeeded"] == 1

@@ -10,7 +10,12 @@ counted twice:
   where its critic is sure, or executes more grasps the critic doubts;
 * by how its viewing ended (:func:`viewing`): HEAPGrasp's early stop
   (``RunConfig.stop_below``) after k view waypoints, or every planned waypoint visited
-  (the fixed-view methods always visit theirs).
+  (the fixed-view methods always visit theirs);
+* by how many candidates the grid it was chosen from offered (:func:`candidates`) — a
+  lone candidate is often the last grasp a crowded hull leaves room for;
+* by how many objects were left on the table (:func:`objects_left`, where the record
+  says; ``heapgrasp bench compare`` adds it from the scene's earlier phases) — the
+  first phase of a scene is its most cluttered.
 
 Each cell holds the successes, the attempts, and the count of every failure outcome
 (``empty``, ``collision``, …). The collisions are also counted by what the hand touched
@@ -27,8 +32,10 @@ from typing import Any
 __all__ = [
     "SCORE_BANDS",
     "breakdown",
+    "candidates",
     "collision_kind",
     "format_breakdown",
+    "objects_left",
     "score_band",
     "viewing",
 ]
@@ -67,6 +74,28 @@ def viewing(phase: Mapping[str, Any]) -> str:
     return "all waypoints"
 
 
+def candidates(phase: Mapping[str, Any]) -> str:
+    """How many grasp candidates the grid the executed grasp was chosen from offered:
+    ``"1 candidate"``, ``"2 candidates"``, ``"3+ candidates"`` (the early stop's count
+    where the viewing stopped, else ``final_candidates``), or ``"not recorded"``."""
+    stopped = phase.get("stopped_early")
+    count = stopped.get("grasp_candidates") if isinstance(stopped, Mapping) else None
+    if count is None:
+        count = phase.get("final_candidates")
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        return "not recorded"
+    return "1 candidate" if count == 1 else ("2 candidates" if count == 2 else "3+ candidates")
+
+
+def objects_left(phase: Mapping[str, Any]) -> str:
+    """How many objects were on the table when the phase began (``objects_left`` in the
+    record): ``"5 objects"``, ``"1 object"``, or ``"not recorded"``."""
+    n = phase.get("objects_left")
+    if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+        return "not recorded"
+    return f"{n} object{'s' if n != 1 else ''}"
+
+
 def collision_kind(phase: Mapping[str, Any]) -> str:
     """What a collision touched, where, and with which part of the hand: ``"<stage>:
     <touched> (<parts>)"``, e.g. ``"approach: object+target (palm)"`` (the phase
@@ -97,17 +126,27 @@ def _add(cell: dict[str, Any], outcome: str) -> None:
         cell["outcomes"][outcome] = cell["outcomes"].get(outcome, 0) + 1
 
 
+def _most_first(label: str) -> tuple[int, int]:
+    """Sort key of :func:`objects_left`'s labels: most objects first, unrecorded last."""
+    head = label.split(" ", 1)[0]
+    return (0, -int(head)) if head.isdigit() else (1, 0)
+
+
 def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
-    """Success per score band and per viewing over the attempted grasps of ``phases``
-    (phase records of ``scenes.jsonl``): ``{"score": {band: cell}, "viewing": {kind:
-    cell}, "collisions": {kind: count}}``, each cell ``{"succeeded", "attempted",
-    "outcomes": {failure: count}}``, each collision kind from :func:`collision_kind`.
-    Bands and kinds without an attempt are left out; bands come in ascending order.
+    """Success per score band, per viewing, per count of candidates and per count of
+    objects left over the attempted grasps of ``phases`` (phase records of
+    ``scenes.jsonl``): ``{"score": {band: cell}, "viewing": {kind: cell},
+    "candidates": {count: cell}, "objects": {count: cell}, "collisions": {kind:
+    count}}``, each cell ``{"succeeded", "attempted", "outcomes": {failure: count}}``,
+    each collision kind from :func:`collision_kind`. Bands and kinds without an attempt
+    are left out; bands come in ascending order, objects from the most.
 
     Raises ``ValueError`` for a phase without an ``outcome``.
     """
     by_score: dict[str, dict[str, Any]] = {}
     by_viewing: dict[str, dict[str, Any]] = {}
+    by_candidates: dict[str, dict[str, Any]] = {}
+    by_objects: dict[str, dict[str, Any]] = {}
     collisions: dict[str, int] = {}
     for i, phase in enumerate(phases):
         outcome = phase.get("outcome")
@@ -119,6 +158,8 @@ def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
         score = target.get("score") if isinstance(target, Mapping) else None
         _add(by_score.setdefault(score_band(score), _cell()), outcome)
         _add(by_viewing.setdefault(viewing(phase), _cell()), outcome)
+        _add(by_candidates.setdefault(candidates(phase), _cell()), outcome)
+        _add(by_objects.setdefault(objects_left(phase), _cell()), outcome)
         if outcome == "collision":
             kind = collision_kind(phase)
             collisions[kind] = collisions.get(kind, 0) + 1
@@ -126,17 +167,26 @@ def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
     return {
         "score": dict(sorted(by_score.items(), key=lambda kv: order[kv[0]])),
         "viewing": dict(sorted(by_viewing.items())),
+        "candidates": dict(sorted(by_candidates.items())),
+        "objects": dict(sorted(by_objects.items(), key=lambda kv: _most_first(kv[0]))),
         "collisions": dict(sorted(collisions.items(), key=lambda kv: (-kv[1], kv[0]))),
     }
 
 
 def format_breakdown(name: str, b: Mapping[str, Mapping[str, Any]]) -> str:
     """The plain-text table of :func:`breakdown` for the run called ``name``."""
-    cells = [c for key in ("score", "viewing") for c in b[key].values()]
+    tables = (
+        ("by the grasp's score", "score"),
+        ("by viewing", "viewing"),
+        ("by the candidates it was chosen from", "candidates"),
+        ("by the objects on the table", "objects"),
+    )
+    tables = tuple((title, key) for title, key in tables if key in b)
+    cells = [c for _, key in tables for c in b[key].values()]
     failures = sorted({o for c in cells for o in c["outcomes"]})
     head = f"{'':<28} {'success':>18}" + "".join(f" {o:>10}" for o in failures)
     lines = [f"{name}: attempted grasps", head]
-    for title, key in (("by the grasp's score", "score"), ("by viewing", "viewing")):
+    for title, key in tables:
         lines.append(f"  {title}")
         for label, cell in b[key].items():
             k, n = cell["succeeded"], cell["attempted"]

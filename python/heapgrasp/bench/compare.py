@@ -75,9 +75,13 @@ def _phases(
                 raise CompareError(
                     f"seed {scene} is in both {first} and {run_dir}: pool runs on other scenes"
                 )
+            left = r.get("objects_total")
             for p in r["phases"]:
                 phases.append({"scene": scene, "outcome": p["outcome"]})
-                records_out.append(p)
+                # The objects on the table when the phase began (for the breakdown).
+                records_out.append({**p, "objects_left": left} if isinstance(left, int) else p)
+                if isinstance(left, int) and p["outcome"] == "success":
+                    left -= 1
                 if p.get("grasp_position") is not None and p.get("trajectory_length_m") is not None:
                     lengths.append(float(p["trajectory_length_m"]))
     return phases, lengths, records_out
