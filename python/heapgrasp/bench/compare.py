@@ -13,7 +13,9 @@ two methods on held-out seeds: A's runs are pooled, B's too, and the comparison 
 all their scenes. A seed may appear in only one run of each side.
 
 ``--breakdown`` adds, for each side, where its grasps fail: success and failure outcomes
-per band of the executed grasp's score and per way the viewing ended
+per band of the executed grasp's score, per way the viewing ended, per count of
+candidates the grasp was chosen from and per count of objects left on the table, and
+the collisions by what the hand touched, where and with which part
 (:mod:`heapgrasp.bench.breakdown`); ``--json`` always holds it.
 
 Examples::
@@ -207,8 +209,9 @@ def add_parser(
         "--breakdown",
         action="store_true",
         help="also print each run's success per band of the executed grasp's score (the "
-        "critic's probability) and per way its viewing ended (early stop after k "
-        "waypoints, or all), with the failure outcomes",
+        "critic's probability), per way its viewing ended (early stop after k "
+        "waypoints, or all), per count of candidates and of objects left, with the "
+        "failure outcomes, and its collisions by what and which part of the hand touched",
     )
     p.add_argument("--json", type=Path, help="also write the comparison to this file")
     p.set_defaults(func=command)
