@@ -394,6 +394,44 @@ def test_grasp_planner_rejects_bad_input():
         NetworkGraspPlanner("missing.pt")
 
 
+cuda = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+# On a GPU, PyTorch's 3-D convolutions may run in TF32 (10-bit mantissa): the outputs
+# agree with the CPU's to about 1e-3, not to float32's last bit.
+TF32_ATOL = 1e-2
+
+
+@cuda
+def test_grasp_planner_on_cuda_matches_cpu(tmp_path):
+    path = save_weights(_grasp_net(40, seed=3), tmp_path / "g.pt", kind="grasp", metadata={})
+    frame = _frame(40)
+    grids = _grid(40, seed=7, batch=2)
+    gpu = NetworkGraspPlanner(path, device="cuda")
+    assert all(p.is_cuda for p in gpu.net.parameters())
+    for a, b in zip(
+        NetworkGraspPlanner(path).predict_batch(grids, frame),
+        gpu.predict_batch(grids, frame),
+        strict=True,
+    ):
+        np.testing.assert_allclose(b.quality, a.quality, atol=TF32_ATOL)
+        np.testing.assert_allclose(b.widths, a.widths, atol=TF32_ATOL)
+        # q and -q are the same rotation
+        dots = np.abs(np.sum(a.quaternions * b.quaternions, axis=-1))
+        np.testing.assert_allclose(dots, 1.0, atol=TF32_ATOL)
+        assert b.quality.dtype == np.float32 and b.quaternions.shape == (40, 40, 40, 4)
+
+
+@cuda
+def test_view_scorer_on_cuda_matches_cpu():
+    net = _view_net(40, shape=(40, 20), seed=4)
+    occ = _grid(40, seed=8)
+    cpu = NetworkViewScorer(net).scores(occ)
+    gpu = NetworkViewScorer(net, device="cuda")
+    assert all(p.is_cuda for p in gpu.net.parameters())
+    s = gpu.scores(occ)
+    assert s.shape == (40, 20) and s.dtype == np.float32
+    np.testing.assert_allclose(s, cpu, atol=TF32_ATOL)
+
+
 def test_view_scorer_scores(tmp_path):
     net = _view_net()
     path = save_weights(net, tmp_path / "v.pt", kind="view", metadata={})
