@@ -44,6 +44,8 @@ def test_defaults_are_table_one() -> None:
         ({"stop_detour_weight": -1.0}, r"stop_detour_weight: must be in \[0.0, 100.0\]"),
         ({"move_weight": float("nan")}, r"move_weight: must be in \[0.0, 100.0\]"),
         ({"stop_after": 0}, "stop_after: must be an integer >= 1; got 0"),
+        ({"net_device": "gpu"}, "net_device: must be cpu, cuda, cuda:N or auto; got 'gpu'"),
+        ({"net_device": "cuda:x"}, "net_device: must be cpu, cuda, cuda:N or auto"),
         ({"lamda": 0.9}, "unknown parameter 'lamda'"),
         ({"Theta-Max": 0.5}, "did you mean 'theta_max'"),
     ],

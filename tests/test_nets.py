@@ -433,6 +433,41 @@ def test_view_scorer_on_cuda_matches_cpu():
     np.testing.assert_allclose(s, cpu, atol=TF32_ATOL)
 
 
+def test_the_config_picks_the_networks_device(tmp_path):
+    from heapgrasp.config import ConfigError, RunConfig
+    from heapgrasp.pipeline import make_grasp_planner, make_view_scorer, net_device
+
+    grasp = save_weights(_grasp_net(40), tmp_path / "g.pt", kind="grasp", metadata={})
+    view = save_weights(_view_net(40, (40, 20)), tmp_path / "v.pt", kind="view", metadata={})
+    base = {"grasp_planner": "network", "grasp_weights": str(grasp)}
+    base |= {"view_planner": "network", "view_weights": str(view)}
+    cpu = RunConfig.from_mapping(base)
+    assert net_device(cpu) == "cpu"
+    assert make_grasp_planner(cpu).device.type == "cpu"
+    assert make_view_scorer(cpu).device.type == "cpu"
+    auto = RunConfig.from_mapping({**base, "net_device": "auto"})
+    assert net_device(auto) == ("cuda" if torch.cuda.is_available() else "cpu")
+    # A device PyTorch cannot see is an error, not a quiet run on the CPU.
+    missing = RunConfig.from_mapping({**base, "net_device": f"cuda:{torch.cuda.device_count()}"})
+    with pytest.raises(ConfigError, match=r"net_device: 'cuda:\d+' asked for, but PyTorch sees"):
+        make_grasp_planner(missing)
+    with pytest.raises(ConfigError, match="net_device"):
+        make_view_scorer(missing)
+
+
+@cuda
+def test_the_config_runs_the_networks_on_cuda(tmp_path):
+    from heapgrasp.config import RunConfig
+    from heapgrasp.pipeline import make_grasp_planner
+
+    grasp = save_weights(_grasp_net(40), tmp_path / "g.pt", kind="grasp", metadata={})
+    config = RunConfig.from_mapping(
+        {"grasp_planner": "network", "grasp_weights": str(grasp), "net_device": "cuda"}
+    )
+    planner = make_grasp_planner(config)
+    assert all(p.is_cuda for p in planner.net.parameters())
+
+
 def test_view_scorer_scores(tmp_path):
     net = _view_net()
     path = save_weights(net, tmp_path / "v.pt", kind="view", metadata={})

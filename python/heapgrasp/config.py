@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -74,6 +75,10 @@ class RunConfig:
     """Path of grasp-network weights (``grasp_planner = "network"``)."""
     view_weights: str | None = None
     """Path of view-network weights (``view_planner = "network"``)."""
+    net_device: str = "cpu"
+    """Where the networks run (``grasp_planner`` or ``view_planner = "network"``):
+    ``cpu``, ``cuda``, ``cuda:N`` or ``auto`` (a CUDA device where PyTorch sees one, else
+    the CPU). The analytic planners and the oracle ignore it."""
     # -- scenes
     layout: str = "pile"
     category: str = "mixed"
@@ -248,6 +253,13 @@ class RunConfig:
         choice("method", METHODS)
         choice("view_planner", VIEW_PLANNERS)
         choice("grasp_planner", GRASP_PLANNERS)
+        if not (
+            isinstance(self.net_device, str)
+            and re.fullmatch(r"cpu|auto|cuda(:\d+)?", self.net_device) is not None
+        ):
+            raise ConfigError(
+                f"net_device: must be cpu, cuda, cuda:N or auto; got {self.net_device!r}"
+            )
         choice("layout", LAYOUTS)
         choice("category", CATEGORIES)
         choice("split", ("train", "test"))

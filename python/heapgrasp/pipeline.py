@@ -36,6 +36,7 @@ every stage can also be passed in (any object satisfying its protocol).
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -540,6 +541,27 @@ def _weights(path: str | None, kind: str, option: str) -> Path:
     return found
 
 
+def net_device(config: RunConfig) -> str:
+    """The device the networks run on (:attr:`RunConfig.net_device`): ``auto`` resolved
+    to ``cuda`` or ``cpu``. A CUDA device that PyTorch cannot see is a
+    :class:`ConfigError`, not a silent run on the CPU."""
+    # heapgrasp.nets first: without PyTorch it raises the "install heapgrasp[nets]" hint.
+    importlib.import_module("heapgrasp.nets")
+    import torch
+
+    wanted = config.net_device
+    if wanted == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if wanted.startswith("cuda"):
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        index = int(wanted.split(":", 1)[1]) if ":" in wanted else 0
+        if index >= count:
+            raise ConfigError(
+                f"net_device: {wanted!r} asked for, but PyTorch sees {count} CUDA device(s)"
+            )
+    return wanted
+
+
 def make_grasp_planner(config: RunConfig) -> GraspPlanner:
     """The configured grasp planner (``antipodal`` or ``network``)."""
     if config.grasp_planner == "antipodal":
@@ -548,7 +570,8 @@ def make_grasp_planner(config: RunConfig) -> GraspPlanner:
         return AntipodalPlanner()
     from heapgrasp.grasping.network import NetworkGraspPlanner
 
-    planner = NetworkGraspPlanner(_weights(config.grasp_weights, "grasp", "grasp_weights"))
+    weights = _weights(config.grasp_weights, "grasp", "grasp_weights")
+    planner = NetworkGraspPlanner(weights, device=net_device(config))
     if config.method == "vgn":
         planner.input_kind = "tsdf"
     return planner
@@ -578,7 +601,8 @@ def make_view_scorer(config: RunConfig) -> ViewScorer | None:
         )
     from heapgrasp.viewplan_network import NetworkViewScorer
 
-    return NetworkViewScorer(_weights(config.view_weights, "view", "view_weights"))
+    weights = _weights(config.view_weights, "view", "view_weights")
+    return NetworkViewScorer(weights, device=net_device(config))
 
 
 def make_robot(config: RunConfig, world: SimWorld) -> Robot:
