@@ -31,6 +31,7 @@ from heapgrasp.nets import (  # noqa: E402
     load_grasp_net,
     load_view_net,
     read_metadata,
+    resolve_device,
     save_weights,
 )
 from heapgrasp.nets.models import _unit_quaternions  # noqa: E402
@@ -433,6 +434,26 @@ def test_view_scorer_on_cuda_matches_cpu():
     np.testing.assert_allclose(s, cpu, atol=TF32_ATOL)
 
 
+def test_resolve_device_names_what_pytorch_sees():
+    assert resolve_device("cpu") == "cpu"
+    assert resolve_device("auto") == ("cuda" if torch.cuda.is_available() else "cpu")
+    count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+    # A device PyTorch cannot see is an error, not a quiet run on the CPU.
+    with pytest.raises(ValueError, match=rf"'cuda:{count}' asked for, but PyTorch sees {count}"):
+        resolve_device(f"cuda:{count}")
+    for bad in ("gpu", "cuda:", "cuda:x", "CPU", 0):
+        with pytest.raises(ValueError, match="device must be cpu, cuda, cuda:N or auto"):
+            resolve_device(bad)  # type: ignore[arg-type]
+
+
+@cuda
+def test_resolve_device_on_cuda(tmp_path):
+    assert resolve_device("auto") == "cuda" and resolve_device("cuda:0") == "cuda:0"
+    path = save_weights(_grasp_net(), tmp_path / "g.pt", kind="grasp", metadata={})
+    planner = NetworkGraspPlanner(path, device=resolve_device("auto"))
+    assert all(p.is_cuda for p in planner.net.parameters())
+
+
 def test_the_config_picks_the_networks_device(tmp_path):
     from heapgrasp.config import ConfigError, RunConfig
     from heapgrasp.pipeline import make_grasp_planner, make_view_scorer, net_device
@@ -446,26 +467,12 @@ def test_the_config_picks_the_networks_device(tmp_path):
     assert make_grasp_planner(cpu).device.type == "cpu"
     assert make_view_scorer(cpu).device.type == "cpu"
     auto = RunConfig.from_mapping({**base, "net_device": "auto"})
-    assert net_device(auto) == ("cuda" if torch.cuda.is_available() else "cpu")
-    # A device PyTorch cannot see is an error, not a quiet run on the CPU.
+    assert net_device(auto) == resolve_device("auto")
     missing = RunConfig.from_mapping({**base, "net_device": f"cuda:{torch.cuda.device_count()}"})
     with pytest.raises(ConfigError, match=r"net_device: 'cuda:\d+' asked for, but PyTorch sees"):
         make_grasp_planner(missing)
     with pytest.raises(ConfigError, match="net_device"):
         make_view_scorer(missing)
-
-
-@cuda
-def test_the_config_runs_the_networks_on_cuda(tmp_path):
-    from heapgrasp.config import RunConfig
-    from heapgrasp.pipeline import make_grasp_planner
-
-    grasp = save_weights(_grasp_net(40), tmp_path / "g.pt", kind="grasp", metadata={})
-    config = RunConfig.from_mapping(
-        {"grasp_planner": "network", "grasp_weights": str(grasp), "net_device": "cuda"}
-    )
-    planner = make_grasp_planner(config)
-    assert all(p.is_cuda for p in planner.net.parameters())
 
 
 def test_view_scorer_scores(tmp_path):

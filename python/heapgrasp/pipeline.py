@@ -542,24 +542,16 @@ def _weights(path: str | None, kind: str, option: str) -> Path:
 
 
 def net_device(config: RunConfig) -> str:
-    """The device the networks run on (:attr:`RunConfig.net_device`): ``auto`` resolved
-    to ``cuda`` or ``cpu``. A CUDA device that PyTorch cannot see is a
-    :class:`ConfigError`, not a silent run on the CPU."""
+    """The device the networks run on (:attr:`RunConfig.net_device`; ``auto`` resolved by
+    :func:`heapgrasp.nets.resolve_device`). A CUDA device that PyTorch cannot see is a
+    :class:`ConfigError`, not a quiet run on the CPU."""
     # heapgrasp.nets first: without PyTorch it raises the "install heapgrasp[nets]" hint.
-    importlib.import_module("heapgrasp.nets")
-    import torch
-
-    wanted = config.net_device
-    if wanted == "auto":
-        return "cuda" if torch.cuda.is_available() else "cpu"
-    if wanted.startswith("cuda"):
-        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
-        index = int(wanted.split(":", 1)[1]) if ":" in wanted else 0
-        if index >= count:
-            raise ConfigError(
-                f"net_device: {wanted!r} asked for, but PyTorch sees {count} CUDA device(s)"
-            )
-    return wanted
+    nets = importlib.import_module("heapgrasp.nets")
+    try:
+        device: str = nets.resolve_device(config.net_device)
+    except ValueError as err:
+        raise ConfigError(f"net_device: {err}") from None
+    return device
 
 
 def make_grasp_planner(config: RunConfig) -> GraspPlanner:

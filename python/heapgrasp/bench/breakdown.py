@@ -175,7 +175,7 @@ def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
 
 def format_breakdown(name: str, b: Mapping[str, Mapping[str, Any]]) -> str:
     """The plain-text table of :func:`breakdown` for the run called ``name``."""
-    tables = (
+    tables: tuple[tuple[str, str], ...] = (
         ("by the grasp's score", "score"),
         ("by viewing", "viewing"),
         ("by the candidates it was chosen from", "candidates"),

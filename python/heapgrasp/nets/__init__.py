@@ -5,7 +5,9 @@
 * :class:`ViewNet` — the same 3-D encoder, z-compression and 2-D decoder predicting the
   ``U × V`` view scores of eq. 13;
 * :func:`save_weights`, :func:`load_grasp_net`, :func:`load_view_net` — weights files with
-  their architecture and provenance.
+  their architecture and provenance;
+* :func:`resolve_device` — ``cpu``, ``cuda``, ``cuda:N`` or ``auto``, checked against the
+  devices PyTorch sees.
 
 The planners that use them, :class:`heapgrasp.grasping.network.NetworkGraspPlanner` and
 :class:`heapgrasp.viewplan_network.NetworkViewScorer`, import this package lazily, so the
@@ -22,6 +24,7 @@ except ImportError as _exc:  # pragma: no cover - exercised by a sys.modules pat
         "(PyTorch), e.g. `pip install 'heapgrasp[nets]'` or `pip install torch`"
     ) from _exc
 
+from heapgrasp.nets.device import resolve_device
 from heapgrasp.nets.models import (
     DEFAULT_RESOLUTION,
     DEFAULT_VIEW_SHAPE,
@@ -49,5 +52,6 @@ __all__ = [
     "load_grasp_net",
     "load_view_net",
     "read_metadata",
+    "resolve_device",
     "save_weights",
 ]
