@@ -14,6 +14,7 @@ from heapgrasp.bench.breakdown import (
     candidates,
     collision_kind,
     format_breakdown,
+    memory,
     objects_left,
     score_band,
     viewing,
@@ -172,6 +173,36 @@ def test_collisions_are_counted_by_what_the_hand_touched() -> None:
     assert "collisions, by where and what the hand touched (with which part)" in text
     assert "approach: object+target (finger+palm)" in text
     assert "collisions" not in format_breakdown("A", breakdown([_phase("success", 0.9)]))
+
+
+def test_a_run_with_scene_memory_is_broken_down_by_how_each_phase_began() -> None:
+    phases = [
+        {**_phase("success", 0.95), "memory": None},
+        {**_phase("empty", 0.95), "memory": {"restored_voxels": 0, "kept": True}},
+        {**_phase("success", 0.95), "memory": {"restored_voxels": 3, "kept": True}},
+        {**_phase("collision", 0.9), "memory": {"restored_voxels": 40, "kept": False}},
+        {**_phase("no_candidate", None), "memory": {"restored_voxels": 0, "kept": True}},
+    ]
+    assert [memory(p) for p in phases] == [
+        "no memory yet",
+        "memory kept",
+        "memory kept",
+        "memory dropped",
+        "memory kept",
+    ]
+    b = breakdown(phases)
+    assert list(b["memory"]) == ["no memory yet", "memory kept", "memory dropped"]
+    assert b["memory"]["memory kept"] == {
+        "succeeded": 1,
+        "attempted": 2,
+        "outcomes": {"empty": 1},
+    }
+    assert "by the scene memory" in format_breakdown("A", b)
+    # A run without it has no such table.
+    assert memory(_phase("success", 0.9)) is None
+    plain = breakdown([_phase("success", 0.9)])
+    assert "memory" not in plain
+    assert "scene memory" not in format_breakdown("A", plain)
 
 
 def test_breakdown_refuses_a_record_without_outcome() -> None:

@@ -360,6 +360,31 @@ def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) 
         assert [c.index for c in pipeline.grasp_candidates()] == [c.index for c in before]
 
 
+def test_with_scene_memory_the_next_phase_starts_from_the_last_ones_hull(
+    tmp_path: Path,
+) -> None:
+    model = box_model(tmp_path, BOX)
+    config = RunConfig(method="heapgrasp", scene_memory=True, L=2)
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=2, category="opaque", seed=0, models=[model])
+        pipeline = build_pipeline(config, world)
+        assert isinstance(pipeline.perception, SilhouettePerception)
+        first = pipeline.plan()
+        assert first.extra["memory"] is None  # a scene's first phase: nothing yet
+        carved = pipeline.perception.grid.count_high_confidence(config.lam)
+        # The scene as it was (no grasp executed): the memory explains the first frame
+        # and is kept, and the first frame starts from the last phase's hull.
+        pipeline.perception.reset()
+        assert pipeline.perception.grid.count_high_confidence(config.lam) >= carved
+        again = pipeline.plan()
+        # A run without it records nothing.
+        plain = build_pipeline(RunConfig(method="no-vp"), world).plan()
+    record = again.extra["memory"]
+    assert record is not None and record["kept"], record
+    assert record["restored_voxels"] <= config.memory_tolerance
+    assert "memory" not in plain.extra
+
+
 def _interrupt_after(n: int) -> Any:
     seen: list[int] = []
 

@@ -113,6 +113,16 @@ class RunConfig:
     silhouettes: what trimming cut that some silhouette shows to be real (a bowl's rim,
     a bottle's neck, an object's edge) is put back (:func:`heapgrasp.roofs.
     keep_silhouettes`). 0 trims without the check. Only with ``roof_radius`` > 0."""
+    scene_memory: bool = False
+    """Silhouette methods: each phase starts from what the previous phases carved,
+    instead of from nothing (:meth:`heapgrasp.perception.SilhouettePerception.remember`):
+    the object taken and anything that moved away are carved by the new frames, and a
+    phase whose first silhouettes show something where the memory holds free space
+    (``memory_tolerance``) drops the memory. Not in the paper, which measures each phase
+    afresh."""
+    memory_tolerance: int = 8
+    """With ``scene_memory``: the most voxels the first frame of a phase may need beyond
+    the remembered hull to explain its silhouette before the memory is dropped."""
     # -- grasp selection (eq. 15-17)
     epsilon: float | None = None
     """Grasp score threshold ε; None = the grasp planner's own (Table I's 0.8 for the VGN
@@ -330,6 +340,7 @@ class RunConfig:
         at_least("objects", 1)
         at_least("scenes", 1)
         at_least("silhouette_views", 0)
+        at_least("memory_tolerance", 0)
         at_least("confirm_waypoints", 0)
         at_least("stop_after", 1)
         at_least("seed", 0)

@@ -17,10 +17,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
+from scipy import ndimage
 
 from heapgrasp import OccupancyGrid, PinholeCamera, TSDFVolume
 from heapgrasp.grasping.volumes import GridFrame
@@ -37,6 +38,23 @@ __all__ = [
 ]
 
 F32 = npt.NDArray[np.float32]
+F64 = npt.NDArray[np.float64]
+
+#: Visibility count given to the voxels a remembered phase carved: no number of frames
+#: that see them segmented brings them back over λ.
+_CARVED_FOR_GOOD = 1 << 24
+
+#: Voxels within this many of a remembered hull are remembered as occupied, not carved:
+#: an object that settles by less than this when its neighbour is taken stays inside.
+MEMORY_MARGIN = 1
+
+
+@dataclass(frozen=True)
+class _Remembered:
+    occupied: npt.NDArray[np.bool_]
+    carved: npt.NDArray[np.bool_]
+    positions: F64
+    views: list[SilhouetteView]
 
 
 @runtime_checkable
@@ -88,13 +106,20 @@ class SilhouettePerception:
     (:func:`heapgrasp.roofs.trim_roofs`, disc radius in metres) and puts back what the
     silhouettes of ``silhouette_views`` of the frames (evenly spaced; 0: none) show to be
     real (:func:`heapgrasp.roofs.keep_silhouettes`); ``roof_radius`` = 0 serves ``Ŝ≥λ``
-    as it is."""
+    as it is.
+
+    ``memory`` (not in the paper) carries what a phase carved into the next one, see
+    :meth:`remember`."""
 
     frame: GridFrame
     segmenter: Segmenter = field(default_factory=IdealSegmenter)
     lam: float = 0.9
     roof_radius: float = 0.0
     silhouette_views: int = 24
+    memory: bool = False
+    memory_tolerance: int = 8
+    """With ``memory``: at most this many voxels may be missing from the remembered hull
+    to explain the new phase's first silhouettes before the memory is dropped."""
 
     def __post_init__(self) -> None:
         if (
@@ -110,16 +135,70 @@ class SilhouettePerception:
         if not (np.isfinite(self.roof_radius) and self.roof_radius >= 0):
             raise ValueError(f"roof_radius must be >= 0, got {self.roof_radius}")
         self.grid = OccupancyGrid(self.frame.origin, self.frame.size, self.frame.resolution)
+        if isinstance(self.memory_tolerance, bool) or not (
+            isinstance(self.memory_tolerance, int) and self.memory_tolerance >= 0
+        ):
+            raise ValueError(
+                f"memory_tolerance must be an integer >= 0, got {self.memory_tolerance!r}"
+            )
         self.frames_seen = 0
         self.views: list[SilhouetteView] = []
         self._positions: list[npt.NDArray[np.float64]] = []
+        self._remembered: _Remembered | None = None
+        self._unchecked = False
+        self.memory_record: dict[str, Any] | None = None
+        """How the phase began with ``memory``: None without a remembered hull, else
+        ``{"restored_voxels": n, "kept": bool}`` (:meth:`remember`)."""
 
     def reset(self) -> None:
-        """Forgets every frame (a new phase)."""
+        """Forgets every frame (a new phase). With ``memory`` and a hull remembered
+        (:meth:`remember`), the grid starts from it instead of from nothing."""
         self.grid.reset()
         self.frames_seen = 0
         self.views = []
         self._positions = []
+        self.memory_record = None
+        self._unchecked = False
+        if self.memory and self._remembered is not None:
+            self._install(self._remembered)
+            self._unchecked = True
+
+    def remember(self) -> None:
+        """With ``memory``: keeps what the grid has carved so far for the next phase.
+
+        The scene between two phases differs by what the grasp did: the object it took
+        is gone and others may have moved. What a phase carved stays empty unless an
+        object moved there, so the next phase's grid starts with those voxels carved for
+        good (their visibility count set beyond any number of frames), and with the
+        remembered hull's voxels occupied as if seen once: the first frame that sees
+        one as background carves it (the object that was taken, an object that moved
+        away). Whether an object moved *into* remembered free space is checked against
+        the first silhouettes of the next phase (:meth:`update`): a part of the mask that
+        the remembered hull cannot explain drops the memory, and the phase goes on from
+        its own frames alone. Camera positions are remembered with the hull (the critic
+        reads them as the views the hull was carved from)."""
+        if not self.memory:
+            return
+        _, visible = self.grid.counts()
+        seen = visible > 0
+        high = self.grid.high_confidence(self.lam) > 0
+        occupied = seen & ndimage.binary_dilation(high, iterations=MEMORY_MARGIN)
+        carved = seen & ~occupied
+        self._remembered = _Remembered(occupied, carved, self.camera_positions(), list(self.views))
+
+    def forget(self) -> None:
+        """Drops the remembered hull (a new scene)."""
+        self._remembered = None
+
+    def _install(self, remembered: _Remembered) -> None:
+        occupied, carved, positions = remembered.occupied, remembered.carved, remembered.positions
+        segmented = occupied.astype(np.uint32)
+        visible = segmented + carved.astype(np.uint32) * np.uint32(_CARVED_FOR_GOOD)
+        self.grid = OccupancyGrid.from_counts(
+            self.frame.origin, self.frame.size, segmented, visible
+        )
+        self._positions = [positions]
+        self.views = list(remembered.views)
 
     def camera_positions(self) -> npt.NDArray[np.float64]:
         """``(frames, 3)`` camera positions of the phase's frames (world, m)."""
@@ -136,11 +215,40 @@ class SilhouettePerception:
         poses = np.stack([f.cam2world for f in frames])
         self.grid.integrate_many(masks, camera, np.ascontiguousarray(poses))
         self.frames_seen += len(frames)
+        if self._unchecked:
+            self._check_memory(camera, masks, poses)
         self._positions.append(poses[:, :3, 3].astype(np.float64))
         if self.roof_radius > 0 and self.silhouette_views > 0:
             self.views.extend(
                 SilhouetteView(camera, p, m) for p, m in zip(poses, masks, strict=True)
             )
+
+    def _check_memory(
+        self, camera: PinholeCamera, masks: npt.NDArray[np.bool_], poses: F64
+    ) -> None:
+        """The first frames of a phase begun from a remembered hull: the voxels of the
+        new frames' own hull needed to explain their silhouettes beyond what the
+        remembered hull explains (:func:`~heapgrasp.roofs.keep_silhouettes`) count what
+        moved into remembered free space; more than ``memory_tolerance`` drop the
+        memory. Voxels that no remembered frame saw explain nothing here: the new frames
+        fill them in any case."""
+        assert self._remembered is not None
+        self._unchecked = False
+        fresh = OccupancyGrid(self.frame.origin, self.frame.size, self.frame.resolution)
+        fresh.integrate_many(masks, camera, np.ascontiguousarray(poses))
+        own = fresh.high_confidence(self.lam) > 0
+        known = self._remembered.occupied
+        views = [SilhouetteView(camera, p, m) for p, m in zip(poses, masks, strict=True)]
+        restored = keep_silhouettes(
+            own | known, known, self.frame.origin, self.grid.voxel_size, views
+        )
+        missing = int(np.count_nonzero(restored > 0) - np.count_nonzero(known))
+        kept = missing <= self.memory_tolerance
+        self.memory_record = {"restored_voxels": missing, "kept": kept}
+        if not kept:
+            self.grid = fresh
+            self._positions = []
+            self.views = []
 
     def occupancy(self) -> F32:
         """``Ŝ_{0-1}`` (eq. 10)."""

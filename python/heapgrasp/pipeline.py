@@ -147,6 +147,8 @@ class Pipeline:
                 cfg.lam,
                 roof_radius=cfg.roof_radius,
                 silhouette_views=cfg.silhouette_views,
+                memory=cfg.scene_memory,
+                memory_tolerance=cfg.memory_tolerance,
             )
         self.adaptive = cfg.method == "heapgrasp" and cfg.view_planner in ("oracle", "network")
         self.joint_path_errors = 0
@@ -474,6 +476,10 @@ class Pipeline:
             best, chosen = self._final_choice(cands, target)
         final_latency = time.perf_counter() - t0
         phase.compute += final_latency
+        memory: dict[str, Any] | None = None
+        if isinstance(self.perception, SilhouettePerception):
+            memory = self.perception.memory_record
+            self.perception.remember()
         current, positions = phase.current, phase.positions
         waypoints, compute, motion = phase.waypoints, phase.compute, phase.motion
         extra: dict[str, Any] = {
@@ -488,6 +494,8 @@ class Pipeline:
             "target_grasp": _candidate_record(chosen),
             "best_grasp": _candidate_record(best),
         }
+        if self.config.scene_memory:
+            extra["memory"] = memory
         if chosen is None:
             return PlanResult(
                 None,

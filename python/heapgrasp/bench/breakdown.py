@@ -96,6 +96,18 @@ def objects_left(phase: Mapping[str, Any]) -> str:
     return f"{n} object{'s' if n != 1 else ''}"
 
 
+def memory(phase: Mapping[str, Any]) -> str | None:
+    """How a phase of a run with ``scene_memory`` began: ``"no memory yet"`` (a scene's
+    first phase), ``"memory kept"`` or ``"memory dropped"`` (the first silhouettes
+    showed something where the memory held free space); None for a run without it."""
+    if "memory" not in phase:
+        return None
+    record = phase["memory"]
+    if not isinstance(record, Mapping):
+        return "no memory yet"
+    return "memory kept" if record.get("kept") else "memory dropped"
+
+
 def collision_kind(phase: Mapping[str, Any]) -> str:
     """What a collision touched, where, and with which part of the hand: ``"<stage>:
     <touched> (<parts>)"``, e.g. ``"approach: object+target (palm)"`` (the phase
@@ -137,9 +149,11 @@ def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
     objects left over the attempted grasps of ``phases`` (phase records of
     ``scenes.jsonl``): ``{"score": {band: cell}, "viewing": {kind: cell},
     "candidates": {count: cell}, "objects": {count: cell}, "collisions": {kind:
-    count}}``, each cell ``{"succeeded", "attempted", "outcomes": {failure: count}}``,
-    each collision kind from :func:`collision_kind`. Bands and kinds without an attempt
-    are left out; bands come in ascending order, objects from the most.
+    count}}``, and ``"memory": {how the phase began: cell}`` (:func:`memory`) where
+    some phase ran with ``scene_memory``; each cell ``{"succeeded", "attempted",
+    "outcomes": {failure: count}}``, each collision kind from :func:`collision_kind`.
+    Bands and kinds without an attempt are left out; bands come in ascending order,
+    objects from the most.
 
     Raises ``ValueError`` for a phase without an ``outcome``.
     """
@@ -147,6 +161,7 @@ def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
     by_viewing: dict[str, dict[str, Any]] = {}
     by_candidates: dict[str, dict[str, Any]] = {}
     by_objects: dict[str, dict[str, Any]] = {}
+    by_memory: dict[str, dict[str, Any]] = {}
     collisions: dict[str, int] = {}
     for i, phase in enumerate(phases):
         outcome = phase.get("outcome")
@@ -160,17 +175,24 @@ def breakdown(phases: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
         _add(by_viewing.setdefault(viewing(phase), _cell()), outcome)
         _add(by_candidates.setdefault(candidates(phase), _cell()), outcome)
         _add(by_objects.setdefault(objects_left(phase), _cell()), outcome)
+        began = memory(phase)
+        if began is not None:
+            _add(by_memory.setdefault(began, _cell()), outcome)
         if outcome == "collision":
             kind = collision_kind(phase)
             collisions[kind] = collisions.get(kind, 0) + 1
     order = {band: i for i, band in enumerate(_band_order())}
-    return {
+    memory_order = {"no memory yet": 0, "memory kept": 1, "memory dropped": 2}
+    out: dict[str, dict[str, Any]] = {
         "score": dict(sorted(by_score.items(), key=lambda kv: order[kv[0]])),
         "viewing": dict(sorted(by_viewing.items())),
         "candidates": dict(sorted(by_candidates.items())),
         "objects": dict(sorted(by_objects.items(), key=lambda kv: _most_first(kv[0]))),
         "collisions": dict(sorted(collisions.items(), key=lambda kv: (-kv[1], kv[0]))),
     }
+    if by_memory:
+        out["memory"] = dict(sorted(by_memory.items(), key=lambda kv: memory_order[kv[0]]))
+    return out
 
 
 def format_breakdown(name: str, b: Mapping[str, Mapping[str, Any]]) -> str:
@@ -180,6 +202,7 @@ def format_breakdown(name: str, b: Mapping[str, Mapping[str, Any]]) -> str:
         ("by viewing", "viewing"),
         ("by the candidates it was chosen from", "candidates"),
         ("by the objects on the table", "objects"),
+        ("by the scene memory", "memory"),
     )
     tables = tuple((title, key) for title, key in tables if key in b)
     cells = [c for _, key in tables for c in b[key].values()]
