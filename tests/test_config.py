@@ -36,7 +36,10 @@ def test_defaults_are_table_one() -> None:
         ({"target_radius": -0.05}, r"target_radius: must be in \[0.0, 1.0\]; got -0.05"),
         ({"circle_closed": 1}, "circle_closed must be of type bool"),
         ({"final_grasp": "nearest"}, "final_grasp: must be one of target, best"),
-        ({"target_region": "box"}, "target_region: must be one of column, gripper; got 'box'"),
+        (
+            {"target_region": "box"},
+            "target_region: must be one of column, gripper, fingers; got 'box'",
+        ),
         ({"confirm_below": 1.2}, r"confirm_below: must be in \[0.0, 1.0\]; got 1.2"),
         ({"confirm_waypoints": -1}, "confirm_waypoints: must be an integer >= 0; got -1"),
         ({"stop_below": -0.1}, r"stop_below: must be in \[0.0, 1.0\]; got -0.1"),

@@ -22,6 +22,7 @@ from heapgrasp.sim.motion import (
 from heapgrasp.viewplan import (
     OracleViewScorer,
     ViewContext,
+    closing_region,
     fixed_waypoints,
     gripper_region,
     subsample_path,
@@ -256,6 +257,30 @@ def test_gripper_region_is_the_box_the_gripper_sweeps_at_the_target() -> None:
         gripper_region(grid, np.eye(3))
     with pytest.raises(ValueError, match="target_region"):
         OracleViewScorer(target_region="sphere")
+
+
+def test_closing_region_is_what_the_finger_tips_close_on() -> None:
+    grid = OccupancyGrid((0.0, 0.0, 0.0), 0.30, 40)
+    pose = np.eye(4)
+    pose[:3, :3] = [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]
+    pose[:3, 3] = (0.15, 0.15, 0.10)
+    tips = closing_region(grid, pose)
+    assert tips.dtype == np.bool_ and (tips <= gripper_region(grid, pose)).all()
+
+    def at(x: float, y: float, z: float) -> bool:
+        i, j, k = (int(c / 0.0075) for c in (x, y, z))
+        return bool(tips[i, j, k])
+
+    assert at(0.151, 0.151, 0.101)  # the TCP
+    assert at(0.151 + 0.035, 0.151, 0.101)  # along the closing axis, inside the opening
+    assert not at(0.151 + 0.05, 0.151, 0.101)  # beyond the widest opening
+    assert not at(0.151, 0.151 + 0.02, 0.101)  # beside the finger's width
+    assert at(0.151, 0.151, 0.101 + 0.015)  # up the finger tips
+    assert not at(0.151, 0.151, 0.101 + 0.03)  # above them, toward the palm
+    assert not at(0.151, 0.151, 0.101 - 0.015)  # below the fingertips
+    with pytest.raises(ValueError, match="pose"):
+        closing_region(grid, np.full((4, 4), np.nan))
+    assert OracleViewScorer(target_region="fingers").target_region == "fingers"
 
 
 def test_the_gripper_oracle_counts_eq14_on_the_gripper_box() -> None:

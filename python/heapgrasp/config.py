@@ -214,9 +214,10 @@ class RunConfig:
     vertical leave a roof on every object, and the global count does not favour the views
     that carve the target's (``docs/benchmarks.md``)."""
     target_region: str = "column"
-    """Shape of that region: ``"column"`` (radius ``target_radius``) or ``"gripper"``,
-    the box the gripper sweeps at the target grasp
-    (:func:`heapgrasp.viewplan.gripper_region`; it applies when ``target_radius`` > 0)."""
+    """Shape of that region: ``"column"`` (radius ``target_radius``), ``"gripper"``, the
+    box the gripper sweeps at the target grasp (:func:`heapgrasp.viewplan.gripper_region`),
+    or ``"fingers"``, what the finger tips would close on
+    (:func:`heapgrasp.viewplan.closing_region`); it applies when ``target_radius`` > 0."""
     initial_radius: float = 0.5
     """Distance of the initial camera pose p⁰ from the bottom centre of the scene (m).
 
@@ -279,7 +280,7 @@ class RunConfig:
         choice("camera", ("continuous", "still"))
         choice("mount", MOUNTS)
         choice("final_grasp", ("target", "best"))
-        choice("target_region", ("column", "gripper"))
+        choice("target_region", ("column", "gripper", "fingers"))
         if not isinstance(self.grasp_critic, str) or not self.grasp_critic:
             raise ConfigError(
                 "grasp_critic: must be 'auto', 'none', 'default' or a file path; "

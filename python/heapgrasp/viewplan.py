@@ -44,9 +44,11 @@ from heapgrasp.sim.motion import (
 )
 
 __all__ = [
+    "TARGET_REGIONS",
     "OracleViewScorer",
     "ViewContext",
     "ViewScorer",
+    "closing_region",
     "fixed_waypoints",
     "gripper_region",
     "subsample_path",
@@ -115,6 +117,9 @@ def target_region(
     return np.ascontiguousarray(np.broadcast_to(column[:, :, None], (r, r, r)))
 
 
+#: The regions eq. 14 may be counted on around a target grasp (``OracleViewScorer``).
+TARGET_REGIONS = ("column", "gripper", "fingers")
+
 #: Extent of :func:`gripper_region` in the target's TCP frame (m): half-width across the
 #: fingers (x), half-length along the closing axis (y), and the range along the approach
 #: (z) from behind the palm's front to below the fingertips.
@@ -123,12 +128,15 @@ GRIPPER_REGION_HALF_Y = 0.07
 GRIPPER_REGION_Z = (-0.06, 0.03)
 
 
-def gripper_region(grid: OccupancyGrid, pose: npt.ArrayLike) -> npt.NDArray[np.bool_]:
-    """The voxels whose centre lies in the box the gripper sweeps at a target grasp
-    ``pose`` (4 x 4, TCP to world; TCP z the approach, fingers closing along y): the
-    fingers at their widest opening, the contacts and what lies just below the
-    fingertips (:data:`GRIPPER_REGION_HALF_X`, :data:`GRIPPER_REGION_HALF_Y`,
-    :data:`GRIPPER_REGION_Z`), as an ``(R, R, R)`` mask."""
+def _tcp_box(
+    grid: OccupancyGrid,
+    pose: npt.ArrayLike,
+    half_x: float,
+    half_y: float,
+    z_range: tuple[float, float],
+) -> npt.NDArray[np.bool_]:
+    """The voxels whose centre lies in the box ``|x| <= half_x``, ``|y| <= half_y``,
+    ``z0 <= z <= z1`` of the TCP frame of ``pose`` (4 x 4, TCP to world)."""
     t = np.asarray(pose, dtype=np.float64)
     if t.shape != (4, 4) or not np.isfinite(t).all():
         raise ValueError(f"pose must be a finite 4 x 4 matrix, got shape {t.shape}")
@@ -143,14 +151,34 @@ def gripper_region(grid: OccupancyGrid, pose: npt.ArrayLike) -> npt.NDArray[np.b
         + axes[2][None, None, :] * rot[2, j]
         for j in range(3)
     ]
-    z0, z1 = GRIPPER_REGION_Z
-    inside = (
-        (np.abs(u[0]) <= GRIPPER_REGION_HALF_X)
-        & (np.abs(u[1]) <= GRIPPER_REGION_HALF_Y)
-        & (u[2] >= z0)
-        & (u[2] <= z1)
-    )
+    z0, z1 = z_range
+    inside = (np.abs(u[0]) <= half_x) & (np.abs(u[1]) <= half_y) & (u[2] >= z0) & (u[2] <= z1)
     return np.ascontiguousarray(inside)
+
+
+def gripper_region(grid: OccupancyGrid, pose: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+    """The voxels whose centre lies in the box the gripper sweeps at a target grasp
+    ``pose`` (4 x 4, TCP to world; TCP z the approach, fingers closing along y): the
+    fingers at their widest opening, the contacts and what lies just below the
+    fingertips (:data:`GRIPPER_REGION_HALF_X`, :data:`GRIPPER_REGION_HALF_Y`,
+    :data:`GRIPPER_REGION_Z`), as an ``(R, R, R)`` mask."""
+    return _tcp_box(grid, pose, GRIPPER_REGION_HALF_X, GRIPPER_REGION_HALF_Y, GRIPPER_REGION_Z)
+
+
+#: Extent of :func:`closing_region` in the target's TCP frame (m): half the finger's
+#: width (x), half the widest opening (y), and the fingers' thin tips along the approach
+#: (z, from where the tip part begins to the fingertips; ``GripperGeometry``).
+CLOSING_REGION_HALF_X = 0.0105
+CLOSING_REGION_HALF_Y = 0.04
+CLOSING_REGION_Z = (-0.02, 0.0072)
+
+
+def closing_region(grid: OccupancyGrid, pose: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+    """The voxels whose centre lies between the finger tips of a target grasp ``pose``
+    at their widest opening (:data:`CLOSING_REGION_HALF_X`, :data:`CLOSING_REGION_HALF_Y`,
+    :data:`CLOSING_REGION_Z`): what the fingers would close on. A view that carves much
+    of it shows the grasp to close on a roof or beside the object."""
+    return _tcp_box(grid, pose, CLOSING_REGION_HALF_X, CLOSING_REGION_HALF_Y, CLOSING_REGION_Z)
 
 
 class OracleViewScorer:
@@ -168,8 +196,9 @@ class OracleViewScorer:
         this radius (m) around it (:func:`target_region`); 0 is the paper's eq. 14 over
         the whole grid.
     target_region
-        ``"column"`` (the column of ``target_radius``) or ``"gripper"`` (the box the
-        gripper sweeps at the target grasp, :func:`gripper_region`); either applies only
+        ``"column"`` (the column of ``target_radius``), ``"gripper"`` (the box the
+        gripper sweeps at the target grasp, :func:`gripper_region`) or ``"fingers"``
+        (what the finger tips close on, :func:`closing_region`); each applies only
         when ``target_radius`` > 0 and the context has a target.
     """
 
@@ -191,8 +220,10 @@ class OracleViewScorer:
         self.frames_per_candidate = int(frames_per_candidate)
         self.step = float(step)
         self.target_radius = float(target_radius)
-        if target_region not in ("column", "gripper"):
-            raise ValueError(f"target_region must be 'column' or 'gripper', got {target_region!r}")
+        if target_region not in TARGET_REGIONS:
+            raise ValueError(
+                f"target_region must be one of {', '.join(TARGET_REGIONS)}, got {target_region!r}"
+            )
         self.target_region = target_region
 
     def region(self, ctx: ViewContext) -> npt.NDArray[np.bool_] | None:
@@ -203,6 +234,8 @@ class OracleViewScorer:
         target = np.asarray(ctx.target, dtype=np.float64)
         if self.target_region == "gripper":
             return gripper_region(ctx.grid, target)
+        if self.target_region == "fingers":
+            return closing_region(ctx.grid, target)
         return target_region(ctx.grid, target[:3, 3], self.target_radius)
 
     def trajectories(self, ctx: ViewContext) -> list[F64]:
