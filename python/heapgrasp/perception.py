@@ -53,7 +53,6 @@ MEMORY_MARGIN = 1
 class _Remembered:
     occupied: npt.NDArray[np.bool_]
     carved: npt.NDArray[np.bool_]
-    positions: F64
     views: list[SilhouetteView]
 
 
@@ -175,8 +174,10 @@ class SilhouettePerception:
         away). Whether an object moved *into* remembered free space is checked against
         the first silhouettes of the next phase (:meth:`update`): a part of the mask that
         the remembered hull cannot explain drops the memory, and the phase goes on from
-        its own frames alone. Camera positions are remembered with the hull (the critic
-        reads them as the views the hull was carved from)."""
+        its own frames alone. The silhouettes are remembered with the hull (for the
+        check after roof trimming), the camera positions are not: the critic reads them
+        as the views the hull near a grasp was carved from, and where an object was taken
+        only the new phase's views have carved."""
         if not self.memory:
             return
         _, visible = self.grid.counts()
@@ -184,20 +185,19 @@ class SilhouettePerception:
         high = self.grid.high_confidence(self.lam) > 0
         occupied = seen & ndimage.binary_dilation(high, iterations=MEMORY_MARGIN)
         carved = seen & ~occupied
-        self._remembered = _Remembered(occupied, carved, self.camera_positions(), list(self.views))
+        self._remembered = _Remembered(occupied, carved, list(self.views))
 
     def forget(self) -> None:
         """Drops the remembered hull (a new scene)."""
         self._remembered = None
 
     def _install(self, remembered: _Remembered) -> None:
-        occupied, carved, positions = remembered.occupied, remembered.carved, remembered.positions
+        occupied, carved = remembered.occupied, remembered.carved
         segmented = occupied.astype(np.uint32)
         visible = segmented + carved.astype(np.uint32) * np.uint32(_CARVED_FOR_GOOD)
         self.grid = OccupancyGrid.from_counts(
             self.frame.origin, self.frame.size, segmented, visible
         )
-        self._positions = [positions]
         self.views = list(remembered.views)
 
     def camera_positions(self) -> npt.NDArray[np.float64]:
@@ -247,7 +247,6 @@ class SilhouettePerception:
         self.memory_record = {"restored_voxels": missing, "kept": kept}
         if not kept:
             self.grid = fresh
-            self._positions = []
             self.views = []
 
     def occupancy(self) -> F32:
