@@ -7,8 +7,7 @@ import math
 
 import numpy as np
 import pytest
-import trimesh
-from heapgrasp import MeshScene
+from box_scenes import Box, box_scene
 from heapgrasp.config import ConfigError, RunConfig
 from heapgrasp.grasping.volumes import GridFrame
 from heapgrasp.perception import SilhouettePerception
@@ -22,18 +21,11 @@ SPEC = CameraSpec()
 BOX_A = ((-0.05, 0.0, 0.0225), (0.05, 0.05, 0.045))
 BOX_B = ((0.05, 0.0, 0.03), (0.04, 0.04, 0.06))
 
-Box = tuple[tuple[float, float, float], tuple[float, float, float]]
-
 
 def _frames(boxes: list[Box], eyes: list[np.ndarray]) -> list[Frame]:
     """Ideal frames of axis-aligned boxes ``(centre, extents)`` from ``eyes``, each
     looking at the middle of the table."""
-    scene = MeshScene()
-    for centre, extents in boxes:
-        mesh = trimesh.creation.box(extents=extents)
-        pose = np.eye(4)
-        pose[:3, 3] = centre
-        scene.add_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), pose)
+    scene = box_scene(boxes)
     out = []
     for eye in eyes:
         pose = look_at(eye, (0.0, 0.0, 0.0))

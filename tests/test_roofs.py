@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
-import trimesh
-from heapgrasp import MeshScene, OccupancyGrid, PinholeCamera
+from box_scenes import box_scene
+from heapgrasp import OccupancyGrid, PinholeCamera
 from heapgrasp.grasping.volumes import GridFrame
 from heapgrasp.perception import SilhouettePerception
 from heapgrasp.roofs import SilhouetteView, column_heights, keep_silhouettes, trim_roofs
@@ -125,12 +125,7 @@ def _carve(
 ) -> tuple[np.ndarray, list[SilhouetteView]]:
     """Carves axis-aligned boxes ``(centre, extents)`` standing in the grid from 8 views
     around them at θ_max = 36° (Table I); returns ``Ŝ≥0.9`` and the views."""
-    scene = MeshScene()
-    for centre, extents in boxes:
-        mesh = trimesh.creation.box(extents=extents)
-        pose = np.eye(4)
-        pose[:3, 3] = centre
-        scene.add_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), pose)
+    scene = box_scene(boxes)
     camera = PinholeCamera(320, 240, 270.0, 270.0, 159.5, 119.5)
     grid = OccupancyGrid(FRAME.origin, FRAME.size, FRAME.resolution)
     views = []
@@ -286,14 +281,7 @@ def _random_hull_case(
         ext = rng.uniform(0.01, 0.07, 3)
         centre = (*rng.uniform(-0.06, 0.06, 2), ext[2] / 2 + rng.uniform(0.0, 0.03))
         boxes.append((tuple(centre), tuple(ext)))
-    scene = MeshScene()
-    for centre, extents in boxes:
-        mesh = trimesh.creation.box(extents=extents)
-        yaw = rng.uniform(0.0, math.pi)
-        pose = np.eye(4)
-        pose[:2, :2] = [[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]]
-        pose[:3, 3] = centre
-        scene.add_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), pose)
+    scene = box_scene(boxes, rng.uniform(0.0, math.pi, len(boxes)))
     camera = PinholeCamera(160, 120, 135.0, 140.0, 79.5, 59.5)
     grid = OccupancyGrid(FRAME.origin, FRAME.size, FRAME.resolution)
     views = []
