@@ -36,6 +36,7 @@ __all__ = [
     "METHODS",
     "MOUNTS",
     "OBJECT_SETS",
+    "TARGET_REGIONS",
     "VIEW_PLANNERS",
     "ConfigError",
     "RunConfig",
@@ -51,6 +52,9 @@ GRASP_PLANNERS = ("antipodal", "network")
 LAYOUTS = ("pile", "packed")
 CATEGORIES = ("transparent", "specular", "opaque", "mixed")
 MOUNTS = ("free", "arm")
+#: The regions eq. 14 may be counted on around a target grasp
+#: (:class:`heapgrasp.viewplan.OracleViewScorer`).
+TARGET_REGIONS = ("column", "gripper", "fingers")
 OBJECT_SETS = ("procedural", "all")
 
 
@@ -280,7 +284,7 @@ class RunConfig:
         choice("camera", ("continuous", "still"))
         choice("mount", MOUNTS)
         choice("final_grasp", ("target", "best"))
-        choice("target_region", ("column", "gripper", "fingers"))
+        choice("target_region", TARGET_REGIONS)
         if not isinstance(self.grasp_critic, str) or not self.grasp_critic:
             raise ConfigError(
                 "grasp_critic: must be 'auto', 'none', 'default' or a file path; "

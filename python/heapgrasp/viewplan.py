@@ -34,7 +34,10 @@ import numpy as np
 import numpy.typing as npt
 
 from heapgrasp import MeshScene, OccupancyGrid, score_views
+from heapgrasp.config import TARGET_REGIONS
+from heapgrasp.grasping.antipodal import GripperGeometry
 from heapgrasp.sim.camera import CameraSpec
+from heapgrasp.sim.fingers import MAX_OPENING
 from heapgrasp.sim.motion import (
     ViewSphere,
     arc_length_samples,
@@ -117,9 +120,6 @@ def target_region(
     return np.ascontiguousarray(np.broadcast_to(column[:, :, None], (r, r, r)))
 
 
-#: The regions eq. 14 may be counted on around a target grasp (``OracleViewScorer``).
-TARGET_REGIONS = ("column", "gripper", "fingers")
-
 #: Extent of :func:`gripper_region` in the target's TCP frame (m): half-width across the
 #: fingers (x), half-length along the closing axis (y), and the range along the approach
 #: (z) from behind the palm's front to below the fingertips.
@@ -165,12 +165,15 @@ def gripper_region(grid: OccupancyGrid, pose: npt.ArrayLike) -> npt.NDArray[np.b
     return _tcp_box(grid, pose, GRIPPER_REGION_HALF_X, GRIPPER_REGION_HALF_Y, GRIPPER_REGION_Z)
 
 
-#: Extent of :func:`closing_region` in the target's TCP frame (m): half the finger's
-#: width (x), half the widest opening (y), and the fingers' thin tips along the approach
-#: (z, from where the tip part begins to the fingertips; ``GripperGeometry``).
-CLOSING_REGION_HALF_X = 0.0105
-CLOSING_REGION_HALF_Y = 0.04
-CLOSING_REGION_Z = (-0.02, 0.0072)
+_HAND = GripperGeometry()
+#: Extent of :func:`closing_region` in the target's TCP frame (m), from the Panda hand's
+#: model (:class:`~heapgrasp.grasping.antipodal.GripperGeometry`, :data:`~heapgrasp.sim.
+#: fingers.MAX_OPENING`): half the finger's width (x), half the widest opening (y), and
+#: the fingers' thin tips along the approach (z, from where the tip part begins to the
+#: fingertips).
+CLOSING_REGION_HALF_X = 0.5 * _HAND.finger_width
+CLOSING_REGION_HALF_Y = 0.5 * MAX_OPENING
+CLOSING_REGION_Z = (_HAND.finger_split, _HAND.finger_tip)
 
 
 def closing_region(grid: OccupancyGrid, pose: npt.ArrayLike) -> npt.NDArray[np.bool_]:
