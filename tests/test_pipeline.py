@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -330,6 +331,36 @@ def test_viewing_stops_early_where_no_look_would_carve_the_target(
     # stop test the target's region (its target recorded by the scorer).
     whole = [t for t in views.targets if t is None]
     assert len(whole) == waypoints
+
+
+@pytest.mark.parametrize(("view_level", "stops"), [(0.0, True), (0.05, False)])
+def test_a_phase_that_never_stopped_sweeps_along_the_rim(
+    tmp_path: Path, view_level: float, stops: bool
+) -> None:
+    # sweep_degrees: only a phase that took all L waypoints goes on, along the rim of
+    # the candidates, by that much azimuth; one that stopped early grasps at once.
+    model = box_model(tmp_path, BOX)
+    script = [[_candidate(0.24, 0.99)]] * 3
+    config = RunConfig(gamma2=0.0, stop_below=0.02, sweep_degrees=90.0, sweep_step=45.0)
+    result, _ = _plan_scripted(model, config, script, view_level)
+    waypoints = result.extra["waypoints"]
+    swept = [w for w in waypoints if w.get("sweep")]
+    if stops:
+        assert len(waypoints) == 1 and not swept
+        return
+    assert len(waypoints) == 5 and len(swept) == 2 and waypoints[3:] == swept
+    assert all(w["frames"] > 0 for w in swept)
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        sphere = build_pipeline(config, world, view_scorer=_ScriptedViews()).sphere
+    rim = config.theta_max * (config.V - 1) / config.V
+    start = sphere.spherical(np.asarray(waypoints[2]["position"]))[0]
+    for k, w in enumerate(swept, start=1):
+        phi, theta, _ = sphere.spherical(np.asarray(w["position"]))
+        assert theta == pytest.approx(rim)
+        turn = (phi - start + math.pi) % (2 * math.pi) - math.pi
+        assert abs(turn) == pytest.approx(math.radians(45.0 * k))
+    # the camera's path ends at the sweep's last waypoint, then goes to the grasp
+    np.testing.assert_allclose(result.camera_positions[-2], swept[-1]["position"], atol=1e-6)
 
 
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:

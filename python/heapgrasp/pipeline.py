@@ -68,7 +68,13 @@ from heapgrasp.sim.motion import MotionLimits, ViewSphere, plan_waypoints, time_
 from heapgrasp.sim.protocol import PlanResult
 from heapgrasp.sim.robot import Robot
 from heapgrasp.sim.world import Capture, Frame, SimWorld
-from heapgrasp.viewplan import OracleViewScorer, ViewContext, ViewScorer, fixed_waypoints
+from heapgrasp.viewplan import (
+    OracleViewScorer,
+    ViewContext,
+    ViewScorer,
+    fixed_waypoints,
+    sweep_waypoints,
+)
 
 __all__ = [
     "Pipeline",
@@ -382,6 +388,32 @@ class Pipeline:
         )
         return True
 
+    def _sweep(self, phase: _PhaseLog) -> None:
+        """``RunConfig.sweep_degrees``: on along the rim of the candidates, capturing."""
+        cfg = self.config
+        rim = cfg.theta_max * (cfg.V - 1) / cfg.V
+        goals = sweep_waypoints(
+            self.sphere,
+            phase.current,
+            np.asarray(phase.positions),
+            degrees=cfg.sweep_degrees,
+            step=cfg.sweep_step,
+            theta=rim,
+        )
+        for goal in goals:
+            visited = self._visit(phase, goal)
+            if visited is None:
+                continue
+            cap, duration = visited
+            phase.waypoints.append(
+                {
+                    "sweep": True,
+                    "position": goal[:3, 3].tolist(),
+                    "frames": len(cap),
+                    "duration_s": duration,
+                }
+            )
+
     def _final_choice(
         self, cands: list[GraspCandidate], target: GraspCandidate | None
     ) -> tuple[GraspCandidate | None, GraspCandidate | None]:
@@ -439,6 +471,9 @@ class Pipeline:
                     # which is why gamma2 = 0 there; neither may such a grasp anchor the
                     # target of eq. 16 at the next waypoint.
                     target = None
+            else:
+                if cfg.sweep_degrees > 0.0:
+                    self._sweep(phase)
         else:
             for goal in self.fixed_waypoints():
                 visited = self._visit(phase, goal)
