@@ -363,6 +363,36 @@ def test_a_phase_that_never_stopped_sweeps_along_the_rim(
     np.testing.assert_allclose(result.camera_positions[-2], swept[-1]["position"], atol=1e-6)
 
 
+@pytest.mark.parametrize("sure_at", [2, None])
+def test_a_sweep_with_sweep_stop_ends_where_the_grasp_is_sure(
+    tmp_path: Path, sure_at: int | None
+) -> None:
+    # sweep_stop: grasps are planned at each of the sweep's waypoints, and the sweep
+    # ends at the first whose best grasp reaches stop_confidence; that grid's grasps
+    # are the final ones (not planned again).
+    model = box_model(tmp_path, BOX)
+    unsure, sure = [_candidate(0.24, 0.9)], [_candidate(0.25, 0.97)]
+    # two view waypoints plan grasps (p0's does not, gamma2 = 0), then the sweep's
+    sweep = [sure if k == sure_at else unsure for k in range(1, 5)]
+    script = [unsure, unsure, *sweep, unsure]
+    config = RunConfig(
+        gamma2=0.0,
+        stop_below=0.02,
+        stop_confidence=0.95,
+        sweep_degrees=180.0,
+        sweep_step=45.0,
+        sweep_stop=True,
+    )
+    result, _ = _plan_scripted(model, config, script, view_level=0.05)
+    swept = [w for w in result.extra["waypoints"] if w.get("sweep")]
+    if sure_at is None:
+        assert len(swept) == 4 and [w["best_score"] for w in swept] == [0.9] * 4
+        assert result.extra["target_grasp"]["score"] == pytest.approx(0.9)
+        return
+    assert [w["best_score"] for w in swept] == [0.9, 0.97]
+    assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.25)
+
+
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:

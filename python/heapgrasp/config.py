@@ -182,6 +182,9 @@ class RunConfig:
     paper). Not in the paper."""
     sweep_step: float = 45.0
     """Azimuth (degrees) between the waypoints of ``sweep_degrees``' sweep."""
+    sweep_stop: bool = False
+    """The sweep ends at the first of its waypoints where the grasp planned there
+    (with the critic, if any) scores ``stop_confidence`` or more."""
     stop_confidence: float = 0.0
     """``stop_below`` ends the viewing only where the target grasp scores at least this
     (with the critic: its probability of success); a doubtful target keeps looking."""

@@ -405,14 +405,22 @@ class Pipeline:
             if visited is None:
                 continue
             cap, duration = visited
-            phase.waypoints.append(
-                {
-                    "sweep": True,
-                    "position": goal[:3, 3].tolist(),
-                    "frames": len(cap),
-                    "duration_s": duration,
-                }
-            )
+            record: dict[str, Any] = {
+                "sweep": True,
+                "position": goal[:3, 3].tolist(),
+                "frames": len(cap),
+                "duration_s": duration,
+            }
+            phase.waypoints.append(record)
+            if cfg.sweep_stop:
+                t0 = time.perf_counter()
+                cands = self.grasp_candidates()
+                phase.compute += time.perf_counter() - t0
+                top = top_scoring(cands)
+                record["best_score"] = None if top is None else top.score
+                if top is not None and top.score >= cfg.stop_confidence:
+                    phase.final_candidates = cands
+                    return
 
     def _final_choice(
         self, cands: list[GraspCandidate], target: GraspCandidate | None
