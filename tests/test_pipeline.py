@@ -393,6 +393,21 @@ def test_a_sweep_with_sweep_stop_ends_where_the_grasp_is_sure(
     assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.25)
 
 
+def test_with_sweep_stop_a_phase_that_found_no_grasp_does_not_sweep(tmp_path: Path) -> None:
+    model = box_model(tmp_path, BOX)
+    config = RunConfig(
+        gamma2=0.0, stop_below=0.02, stop_confidence=0.95, sweep_degrees=180.0, sweep_stop=True
+    )
+    result, _ = _plan_scripted(model, config, [[], [], []], view_level=0.05)
+    waypoints = result.extra["waypoints"]
+    assert len(waypoints) == 3 and not any(w.get("sweep") for w in waypoints)
+    assert result.extra["target_grasp"] is None
+    # without sweep_stop the same phase sweeps (sweep_degrees alone)
+    plain = config.replace({"sweep_stop": False})
+    result, _ = _plan_scripted(model, plain, [[], [], []], view_level=0.05)
+    assert sum(bool(w.get("sweep")) for w in result.extra["waypoints"]) == 4
+
+
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:

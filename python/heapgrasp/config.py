@@ -184,7 +184,8 @@ class RunConfig:
     """Azimuth (degrees) between the waypoints of ``sweep_degrees``' sweep."""
     sweep_stop: bool = False
     """The sweep ends at the first of its waypoints where the grasp planned there
-    (with the critic, if any) scores ``stop_confidence`` or more."""
+    (with the critic, if any) scores ``stop_confidence`` or more, and a phase whose last
+    view waypoint planned no grasp at all does not sweep."""
     stop_confidence: float = 0.0
     """``stop_below`` ends the viewing only where the target grasp scores at least this
     (with the critic: its probability of success); a doubtful target keeps looking."""

@@ -480,7 +480,10 @@ class Pipeline:
                     # target of eq. 16 at the next waypoint.
                     target = None
             else:
-                if cfg.sweep_degrees > 0.0:
+                # With sweep_stop the sweep is for a grasp the phase is unsure of: where
+                # the last waypoint found none, the phase ends as it would without it.
+                unsure = bool(phase.waypoints and phase.waypoints[-1].get("grasp_candidates"))
+                if cfg.sweep_degrees > 0.0 and (unsure or not cfg.sweep_stop):
                     self._sweep(phase)
         else:
             for goal in self.fixed_waypoints():
