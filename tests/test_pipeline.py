@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -330,6 +331,81 @@ def test_viewing_stops_early_where_no_look_would_carve_the_target(
     # stop test the target's region (its target recorded by the scorer).
     whole = [t for t in views.targets if t is None]
     assert len(whole) == waypoints
+
+
+@pytest.mark.parametrize(("view_level", "stops"), [(0.0, True), (0.05, False)])
+def test_a_phase_that_never_stopped_sweeps_along_the_rim(
+    tmp_path: Path, view_level: float, stops: bool
+) -> None:
+    # sweep_degrees: only a phase that took all L waypoints goes on, along the rim of
+    # the candidates, by that much azimuth; one that stopped early grasps at once.
+    model = box_model(tmp_path, BOX)
+    script = [[_candidate(0.24, 0.99)]] * 3
+    config = RunConfig(gamma2=0.0, stop_below=0.02, sweep_degrees=90.0, sweep_step=45.0)
+    result, _ = _plan_scripted(model, config, script, view_level)
+    waypoints = result.extra["waypoints"]
+    swept = [w for w in waypoints if w.get("sweep")]
+    if stops:
+        assert len(waypoints) == 1 and not swept
+        return
+    assert len(waypoints) == 5 and len(swept) == 2 and waypoints[3:] == swept
+    assert all(w["frames"] > 0 for w in swept)
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        sphere = build_pipeline(config, world, view_scorer=_ScriptedViews()).sphere
+    rim = config.theta_max * (config.V - 1) / config.V
+    start = sphere.spherical(np.asarray(waypoints[2]["position"]))[0]
+    for k, w in enumerate(swept, start=1):
+        phi, theta, _ = sphere.spherical(np.asarray(w["position"]))
+        assert theta == pytest.approx(rim)
+        turn = (phi - start + math.pi) % (2 * math.pi) - math.pi
+        assert abs(turn) == pytest.approx(math.radians(45.0 * k))
+    # the camera's path ends at the sweep's last waypoint, then goes to the grasp
+    np.testing.assert_allclose(result.camera_positions[-2], swept[-1]["position"], atol=1e-6)
+
+
+@pytest.mark.parametrize("sure_at", [2, None])
+def test_a_sweep_with_sweep_stop_ends_where_the_grasp_is_sure(
+    tmp_path: Path, sure_at: int | None
+) -> None:
+    # sweep_stop: grasps are planned at each of the sweep's waypoints, and the sweep
+    # ends at the first whose best grasp reaches stop_confidence; that grid's grasps
+    # are the final ones (not planned again).
+    model = box_model(tmp_path, BOX)
+    unsure, sure = [_candidate(0.24, 0.9)], [_candidate(0.25, 0.97)]
+    # two view waypoints plan grasps (p0's does not, gamma2 = 0), then the sweep's
+    sweep = [sure if k == sure_at else unsure for k in range(1, 5)]
+    script = [unsure, unsure, *sweep, unsure]
+    config = RunConfig(
+        gamma2=0.0,
+        stop_below=0.02,
+        stop_confidence=0.95,
+        sweep_degrees=180.0,
+        sweep_step=45.0,
+        sweep_stop=True,
+    )
+    result, _ = _plan_scripted(model, config, script, view_level=0.05)
+    swept = [w for w in result.extra["waypoints"] if w.get("sweep")]
+    if sure_at is None:
+        assert len(swept) == 4 and [w["best_score"] for w in swept] == [0.9] * 4
+        assert result.extra["target_grasp"]["score"] == pytest.approx(0.9)
+        return
+    assert [w["best_score"] for w in swept] == [0.9, 0.97]
+    assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.25)
+
+
+def test_with_sweep_stop_a_phase_that_found_no_grasp_does_not_sweep(tmp_path: Path) -> None:
+    model = box_model(tmp_path, BOX)
+    config = RunConfig(
+        gamma2=0.0, stop_below=0.02, stop_confidence=0.95, sweep_degrees=180.0, sweep_stop=True
+    )
+    result, _ = _plan_scripted(model, config, [[], [], []], view_level=0.05)
+    waypoints = result.extra["waypoints"]
+    assert len(waypoints) == 3 and not any(w.get("sweep") for w in waypoints)
+    assert result.extra["target_grasp"] is None
+    # without sweep_stop the same phase sweeps (sweep_degrees alone)
+    plain = config.replace({"sweep_stop": False})
+    result, _ = _plan_scripted(model, plain, [[], [], []], view_level=0.05)
+    assert sum(bool(w.get("sweep")) for w in result.extra["waypoints"]) == 4
 
 
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:

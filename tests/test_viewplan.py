@@ -26,6 +26,7 @@ from heapgrasp.viewplan import (
     fixed_waypoints,
     gripper_region,
     subsample_path,
+    sweep_waypoints,
     target_region,
 )
 from reference import box_mesh
@@ -342,3 +343,31 @@ def test_target_column_oracle_favours_views_of_the_target() -> None:
     region = oracle.region(ViewContext(grid, start, cands, sphere, camera, 0.9, scene, target))
     assert region is not None
     np.testing.assert_array_equal(region, target_region(grid, target[:3, 3], 0.04))
+
+
+def test_sweep_turns_toward_the_azimuths_not_yet_seen() -> None:
+    sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.3, radius=0.33)
+    theta = math.pi / 5
+    current = sphere.pose(0.0, theta)
+    # Views so far lie clockwise of the current one (and one above, without azimuth).
+    seen = np.stack([sphere.eye(math.radians(a), theta) for a in (0.0, -30.0, -60.0)])
+    seen = np.vstack([seen, sphere.eye(0.0, 0.0)])
+    goals = sweep_waypoints(sphere, current, seen, degrees=100.0, step=45.0, theta=theta)
+    assert goals.shape == (3, 4, 4)  # 100° in steps of at most 45°: 33.3° each
+    phis = [math.degrees(sphere.spherical(g)[0]) for g in goals]
+    np.testing.assert_allclose(phis, [100 / 3, 200 / 3, 100.0], atol=1e-9)
+    for g in goals:
+        assert sphere.spherical(g)[1] == pytest.approx(theta)
+        np.testing.assert_allclose(g, sphere.pose(sphere.spherical(g)[0], theta), atol=1e-12)
+    # Seen counter-clockwise instead: it turns the other way.
+    mirrored = seen * np.array([1.0, -1.0, 1.0]) + np.array([0.0, 0.3, 0.0])
+    back = sweep_waypoints(sphere, current, mirrored, degrees=100.0, step=45.0, theta=theta)
+    phis = [math.degrees(sphere.spherical(g)[0]) for g in back]
+    np.testing.assert_allclose(phis, [360 - 100 / 3, 360 - 200 / 3, 260.0], atol=1e-9)
+
+
+@pytest.mark.parametrize("degrees", [0.0, -10.0, 400.0, float("nan")])
+def test_sweep_rejects_a_bad_extent(degrees: float) -> None:
+    sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.3, radius=0.33)
+    with pytest.raises(ValueError, match="degrees"):
+        sweep_waypoints(sphere, sphere.pose(0.0, 0.5), np.zeros((0, 3)), degrees=degrees)

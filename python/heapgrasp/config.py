@@ -172,6 +172,20 @@ class RunConfig:
     grasps on the grid it has (its grasps are not planned again). ``L`` becomes the most
     waypoints a phase takes. Applies from the ``stop_after``-th waypoint
     on; 0 never stops (the paper: exactly L waypoints). Not in the paper."""
+    sweep_degrees: float = 0.0
+    """HEAPGrasp with a view planner: a phase that took all ``L`` view waypoints without
+    stopping early (``stop_below``) goes on along the rim of the candidates (the lowest
+    views, ``theta = theta_max (V-1)/V``) by this many degrees of azimuth, capturing
+    continuously, in the direction that adds the most azimuths its views lack. Such a
+    phase has found no grasp it is sure of, and a hull carved from a few nearby
+    directions leaves roofs on the side its views did not reach. 0 never sweeps (the
+    paper). Not in the paper."""
+    sweep_step: float = 45.0
+    """Azimuth (degrees) between the waypoints of ``sweep_degrees``' sweep."""
+    sweep_stop: bool = False
+    """The sweep ends at the first of its waypoints where the grasp planned there
+    (with the critic, if any) scores ``stop_confidence`` or more, and a phase whose last
+    view waypoint planned no grasp at all does not sweep."""
     stop_confidence: float = 0.0
     """``stop_below`` ends the viewing only where the target grasp scores at least this
     (with the critic: its probability of success); a doubtful target keeps looking."""
@@ -327,6 +341,8 @@ class RunConfig:
         between("stop_below", 0.0, 1.0)
         between("stop_confidence", 0.0, 1.0)
         between("stop_detour_weight", 0.0, 100.0)
+        between("sweep_degrees", 0.0, 360.0)
+        between("sweep_step", 1.0, 180.0)
         between("move_weight", 0.0, 100.0)
         if self.sigma is not None:
             between("sigma", 0.0, 100.0)

@@ -68,7 +68,13 @@ from heapgrasp.sim.motion import MotionLimits, ViewSphere, plan_waypoints, time_
 from heapgrasp.sim.protocol import PlanResult
 from heapgrasp.sim.robot import Robot
 from heapgrasp.sim.world import Capture, Frame, SimWorld
-from heapgrasp.viewplan import OracleViewScorer, ViewContext, ViewScorer, fixed_waypoints
+from heapgrasp.viewplan import (
+    OracleViewScorer,
+    ViewContext,
+    ViewScorer,
+    fixed_waypoints,
+    sweep_waypoints,
+)
 
 __all__ = [
     "Pipeline",
@@ -382,6 +388,40 @@ class Pipeline:
         )
         return True
 
+    def _sweep(self, phase: _PhaseLog) -> None:
+        """``RunConfig.sweep_degrees``: on along the rim of the candidates, capturing."""
+        cfg = self.config
+        rim = cfg.theta_max * (cfg.V - 1) / cfg.V
+        goals = sweep_waypoints(
+            self.sphere,
+            phase.current,
+            np.asarray(phase.positions),
+            degrees=cfg.sweep_degrees,
+            step=cfg.sweep_step,
+            theta=rim,
+        )
+        for goal in goals:
+            visited = self._visit(phase, goal)
+            if visited is None:
+                continue
+            cap, duration = visited
+            record: dict[str, Any] = {
+                "sweep": True,
+                "position": goal[:3, 3].tolist(),
+                "frames": len(cap),
+                "duration_s": duration,
+            }
+            phase.waypoints.append(record)
+            if cfg.sweep_stop:
+                t0 = time.perf_counter()
+                cands = self.grasp_candidates()
+                phase.compute += time.perf_counter() - t0
+                top = top_scoring(cands)
+                record["best_score"] = None if top is None else top.score
+                if top is not None and top.score >= cfg.stop_confidence:
+                    phase.final_candidates = cands
+                    return
+
     def _final_choice(
         self, cands: list[GraspCandidate], target: GraspCandidate | None
     ) -> tuple[GraspCandidate | None, GraspCandidate | None]:
@@ -439,6 +479,12 @@ class Pipeline:
                     # which is why gamma2 = 0 there; neither may such a grasp anchor the
                     # target of eq. 16 at the next waypoint.
                     target = None
+            else:
+                # With sweep_stop the sweep is for a grasp the phase is unsure of: where
+                # the last waypoint found none, the phase ends as it would without it.
+                unsure = bool(phase.waypoints and phase.waypoints[-1].get("grasp_candidates"))
+                if cfg.sweep_degrees > 0.0 and (unsure or not cfg.sweep_stop):
+                    self._sweep(phase)
         else:
             for goal in self.fixed_waypoints():
                 visited = self._visit(phase, goal)

@@ -55,6 +55,7 @@ __all__ = [
     "fixed_waypoints",
     "gripper_region",
     "subsample_path",
+    "sweep_waypoints",
     "target_region",
 ]
 
@@ -310,3 +311,47 @@ def fixed_waypoints(
             theta=hemisphere_theta,
         )
     raise ValueError(f"fixed waypoints: kind must be 'circle' or 'hemisphere6', got {kind!r}")
+
+
+def sweep_waypoints(
+    sphere: ViewSphere,
+    current: npt.ArrayLike,
+    seen: npt.ArrayLike,
+    *,
+    degrees: float,
+    step: float = 45.0,
+    theta: float = math.pi / 5,
+) -> F64:
+    """Waypoints of a sweep along the circle at polar angle ``theta`` from the azimuth of
+    ``current`` (4 x 4 camera pose, or its eye), ``degrees`` of azimuth in steps of at
+    most ``step`` (``RunConfig.sweep_degrees``).
+
+    It turns whichever way reaches more azimuths that the camera positions ``seen``
+    (``(N, 3)``) lack: each waypoint counts its angular distance to the nearest azimuth
+    seen, up to 45°, and the larger sum wins (ties turn counter-clockwise). Positions
+    within 10° of the sphere's axis have no azimuth to speak of and are ignored.
+    """
+    if not (math.isfinite(degrees) and 0.0 < degrees <= 360.0):
+        raise ValueError(f"degrees must be in (0, 360], got {degrees!r}")
+    if not (math.isfinite(step) and step > 0.0):
+        raise ValueError(f"step must be > 0, got {step!r}")
+    pts = np.asarray(seen, dtype=np.float64).reshape(-1, 3)
+    phi0, _, _ = sphere.spherical(current)
+    n = max(1, math.ceil(degrees / step - 1e-9))
+    offsets = np.radians(degrees) * np.arange(1, n + 1) / n
+    azimuths = []
+    for p in pts:
+        phi, th, _ = sphere.spherical(p)
+        if th > math.radians(10.0):
+            azimuths.append(phi)
+    seen_phi = np.asarray(azimuths, dtype=np.float64)
+
+    def novelty(phis: F64) -> float:
+        if seen_phi.size == 0:
+            return 0.0
+        d = np.abs((phis[:, None] - seen_phi[None, :] + math.pi) % (2 * math.pi) - math.pi)
+        return float(np.minimum(d.min(axis=1), math.radians(45.0)).sum())
+
+    ccw, cw = phi0 + offsets, phi0 - offsets
+    phis = ccw if novelty(ccw) >= novelty(cw) else cw
+    return np.stack([sphere.pose(float(phi), theta) for phi in phis])
