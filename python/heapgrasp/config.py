@@ -184,8 +184,9 @@ class RunConfig:
     """Azimuth (degrees) between the waypoints of ``sweep_degrees``' sweep."""
     sweep_stop: bool = False
     """The sweep ends at the first of its waypoints where the grasp planned there
-    (with the critic, if any) scores ``stop_confidence`` or more, and a phase whose last
-    view waypoint planned no grasp at all does not sweep."""
+    (with the critic, if any) scores ``stop_confidence`` or more, and a phase whose grasp
+    planning found no grasp at all before its last move (the plan at the last view
+    waypoint's step, on the grid before that move) does not sweep."""
     stop_confidence: float = 0.0
     """``stop_below`` ends the viewing only where the target grasp scores at least this
     (with the critic: its probability of success); a doubtful target keeps looking."""

@@ -481,7 +481,8 @@ class Pipeline:
                     target = None
             else:
                 # With sweep_stop the sweep is for a grasp the phase is unsure of: where
-                # the last waypoint found none, the phase ends as it would without it.
+                # the plan before the last move found none, the phase ends as it would
+                # without the sweep (the record is that step's plan, not the final grid's).
                 unsure = bool(phase.waypoints and phase.waypoints[-1].get("grasp_candidates"))
                 if cfg.sweep_degrees > 0.0 and (unsure or not cfg.sweep_stop):
                     self._sweep(phase)
