@@ -372,9 +372,10 @@ def test_a_sweep_with_sweep_stop_ends_where_the_grasp_is_sure(
     # are the final ones (not planned again).
     model = box_model(tmp_path, BOX)
     unsure, sure = [_candidate(0.24, 0.9)], [_candidate(0.25, 0.97)]
-    # two view waypoints plan grasps (p0's does not, gamma2 = 0), then the sweep's
+    # two view waypoints plan grasps (p0's does not, gamma2 = 0), then the sweep's; the
+    # final grasp is the last sweep step's (the script has no entry for another plan)
     sweep = [sure if k == sure_at else unsure for k in range(1, 5)]
-    script = [unsure, unsure, *sweep, unsure]
+    script = [unsure, unsure, *sweep]
     config = RunConfig(
         gamma2=0.0,
         stop_below=0.02,
@@ -402,7 +403,9 @@ def test_with_sweep_stop_a_phase_that_found_no_grasp_does_not_sweep(tmp_path: Pa
     waypoints = result.extra["waypoints"]
     assert len(waypoints) == 3 and not any(w.get("sweep") for w in waypoints)
     assert result.extra["target_grasp"] is None
-    # without sweep_stop the same phase sweeps (sweep_degrees alone)
+    # sweep_stop without a sweep is refused; without sweep_stop the phase sweeps
+    with pytest.raises(ConfigError, match="sweep_stop"):
+        config.replace({"sweep_degrees": 0.0})
     plain = config.replace({"sweep_stop": False})
     result, _ = _plan_scripted(model, plain, [[], [], []], view_level=0.05)
     assert sum(bool(w.get("sweep")) for w in result.extra["waypoints"]) == 4

@@ -344,6 +344,8 @@ class RunConfig:
         between("stop_detour_weight", 0.0, 100.0)
         between("sweep_degrees", 0.0, 360.0)
         between("sweep_step", 1.0, 180.0)
+        if self.sweep_stop and self.sweep_degrees == 0.0:
+            raise ConfigError("sweep_stop needs a sweep: set sweep_degrees > 0")
         between("move_weight", 0.0, 100.0)
         if self.sigma is not None:
             between("sigma", 0.0, 100.0)

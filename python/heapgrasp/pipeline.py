@@ -404,6 +404,7 @@ class Pipeline:
             visited = self._visit(phase, goal)
             if visited is None:
                 continue
+            phase.final_candidates = None  # the grid has changed
             cap, duration = visited
             record: dict[str, Any] = {
                 "sweep": True,
@@ -418,8 +419,9 @@ class Pipeline:
                 phase.compute += time.perf_counter() - t0
                 top = top_scoring(cands)
                 record["best_score"] = None if top is None else top.score
+                # planned on the grid as it is: the final grasp's, if no move follows
+                phase.final_candidates = cands
                 if top is not None and top.score >= cfg.stop_confidence:
-                    phase.final_candidates = cands
                     return
 
     def _final_choice(
@@ -483,8 +485,8 @@ class Pipeline:
                 # With sweep_stop the sweep is for a grasp the phase is unsure of: where
                 # the plan before the last move found none, the phase ends as it would
                 # without the sweep (the record is that step's plan, not the final grid's).
-                unsure = bool(phase.waypoints and phase.waypoints[-1].get("grasp_candidates"))
-                if cfg.sweep_degrees > 0.0 and (unsure or not cfg.sweep_stop):
+                planned = bool(phase.waypoints and phase.waypoints[-1].get("grasp_candidates"))
+                if cfg.sweep_degrees > 0.0 and (planned or not cfg.sweep_stop):
                     self._sweep(phase)
         else:
             for goal in self.fixed_waypoints():
