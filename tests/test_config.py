@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 from heapgrasp.cli import build_parser, main
-from heapgrasp.config import ConfigError, RunConfig
+from heapgrasp.config import ConfigError, RunConfig, presets
 from heapgrasp.run_cli import config_from_args
 
 
@@ -93,6 +93,49 @@ def test_cli_reports_bad_config_with_status_2(
     assert not (tmp_path / "r").exists(), "nothing is written for a bad configuration"
     assert main(["run", "--print-config", "--objects", "7"]) == 0
     assert '"objects": 7' in capsys.readouterr().out
+
+
+def test_the_presets_are_the_settings_docs_benchmarks_measured() -> None:
+    # docs/benchmarks.md, "Sweeping until the grasp is sure": runs/SWC-$S with $T $V3
+    # and the --set flags after them; runs/nvp-$S-top with $T
+    assert set(presets()) == {"above", "short-path"}
+    above = RunConfig(initial_radius=0.6, initial_theta=0.0)
+    assert RunConfig.load("above") == above
+    short = above.replace(
+        {"gamma2": 0.0, "stop_below": 0.02, "stop_detour_weight": 0.1, "stop_confidence": 0.92}
+    ).replace(
+        {
+            "move_weight": 0.05,
+            "scene_memory": True,
+            "stop_confidence": 0.95,
+            "sweep_degrees": 360.0,
+            "sweep_step": 30.0,
+            "sweep_stop": True,
+        }
+    )
+    assert RunConfig.load("short-path") == short
+    assert short != RunConfig()  # the defaults stay Table I's
+
+
+def test_config_takes_a_file_or_a_preset_and_names_a_bad_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    with pytest.raises(ConfigError, match=r"'short-paht' is neither a file nor a preset"):
+        RunConfig.load("short-paht")
+    with pytest.raises(ConfigError, match="config file not found"):
+        RunConfig.load(tmp_path / "missing.toml")
+    # a file of a preset's name wins over the preset
+    monkeypatch.chdir(tmp_path)
+    Path("above").write_text("L = 4\n")
+    assert RunConfig.load("above") == RunConfig(L=4)
+    assert main(["run", "--print-config", "--config", "short-path", "--set", "L=2"]) == 0
+    out = capsys.readouterr().out
+    assert '"sweep_stop": true' in out and '"L": 2' in out
+    assert main(["bench", "sim", "--config", "nope", "--out", str(tmp_path / "b")]) == 2
+    assert "'nope' is neither a file nor a preset (presets: above, short-path)" in (
+        capsys.readouterr().err
+    )
+    assert not (tmp_path / "b").exists()
 
 
 def test_the_oracle_scores_with_the_configured_number_of_silhouettes() -> None:

@@ -13,6 +13,9 @@ holds any subset of the fields at top level (names as below), e.g.::
 
 Unknown keys and values of the wrong type or range raise :class:`ConfigError` naming
 the key, the value and the file.
+
+Presets are such files shipped with the package (:data:`PRESETS_DIR`), named by their
+stem: ``--config short-path`` (:func:`presets`, :meth:`RunConfig.load`).
 """
 
 from __future__ import annotations
@@ -36,11 +39,13 @@ __all__ = [
     "METHODS",
     "MOUNTS",
     "OBJECT_SETS",
+    "PRESETS_DIR",
     "TARGET_REGIONS",
     "VIEW_PLANNERS",
     "ConfigError",
     "RunConfig",
     "object_library",
+    "presets",
 ]
 
 #: ``--method`` values: the proposed method and the baselines of HEAPGrasp §VI-B.
@@ -56,6 +61,13 @@ MOUNTS = ("free", "arm")
 #: (:class:`heapgrasp.viewplan.OracleViewScorer`).
 TARGET_REGIONS = ("column", "gripper", "fingers")
 OBJECT_SETS = ("procedural", "all")
+#: The shipped presets: ``NAME.toml`` files of :class:`RunConfig` fields.
+PRESETS_DIR = Path(__file__).resolve().parent / "presets"
+
+
+def presets() -> dict[str, Path]:
+    """The shipped presets by name (a file's stem), e.g. ``{"short-path": …}``."""
+    return {p.stem: p for p in sorted(PRESETS_DIR.glob("*.toml"))}
 
 
 class ConfigError(ValueError):
@@ -416,6 +428,20 @@ class RunConfig:
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(f"{p}: not valid TOML: {exc}") from None
         return cls.from_mapping(data, source=str(p))
+
+    @classmethod
+    def load(cls, spec: str | Path) -> RunConfig:
+        """``--config``: a TOML file, or the name of a shipped preset (:func:`presets`).
+        A file of that name wins over a preset."""
+        path = Path(spec)
+        if path.exists() or path.suffix == ".toml" or len(path.parts) > 1:
+            return cls.from_toml(path)
+        shipped = presets()
+        if str(spec) in shipped:
+            return cls.from_toml(shipped[str(spec)])
+        raise ConfigError(
+            f"config: {str(spec)!r} is neither a file nor a preset (presets: {', '.join(shipped)})"
+        )
 
     def replace(self, changes: Mapping[str, Any], *, source: str = "config") -> RunConfig:
         """A copy with ``changes`` applied (``None`` values are ignored)."""

@@ -23,6 +23,7 @@ from heapgrasp.config import (
     VIEW_PLANNERS,
     ConfigError,
     RunConfig,
+    presets,
 )
 
 __all__ = ["add_parser", "apply_sets", "config_from_args", "run_command"]
@@ -83,7 +84,11 @@ def add_parser(
     p.add_argument("--seed", type=int, help="seed of scene 0; scene i uses seed + i (default 0)")
     p.add_argument("--noise", type=float, help="mask pixel-flip probability (Table V; default 0)")
     p.add_argument("--mount", choices=MOUNTS, help="free-flying hand (default) or Panda arm")
-    p.add_argument("--config", type=Path, help="TOML file of RunConfig fields")
+    p.add_argument(
+        "--config",
+        metavar="FILE|PRESET",
+        help="TOML file of RunConfig fields, or a shipped preset: " + ", ".join(presets()),
+    )
     p.add_argument(
         "--set",
         action="append",
@@ -128,7 +133,7 @@ def apply_sets(config: RunConfig, items: list[str]) -> RunConfig:
 
 def config_from_args(args: argparse.Namespace) -> RunConfig:
     """The :class:`RunConfig` of parsed ``heapgrasp run`` arguments."""
-    config = RunConfig.from_toml(args.config) if args.config is not None else RunConfig()
+    config = RunConfig.load(args.config) if args.config is not None else RunConfig()
     flags = {field: getattr(args, dest) for dest, field in _FLAGS.items()}
     config = config.replace(flags, source="command line")
     return apply_sets(config, args.set)

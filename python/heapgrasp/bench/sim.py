@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from heapgrasp.config import METHODS, ConfigError, RunConfig
+from heapgrasp.config import METHODS, ConfigError, RunConfig, presets
 from heapgrasp.stats import format_interval, methods_differences, success_interval
 
 __all__ = [
@@ -77,7 +77,12 @@ def add_parser(
     p.add_argument("--objects", type=int, default=5, help="objects per scene")
     p.add_argument("--seed", type=int, default=0, help="seed of scene 0")
     p.add_argument("--layout", choices=("pile", "packed"), default="pile")
-    p.add_argument("--config", type=Path, help="TOML file of RunConfig fields (all methods)")
+    p.add_argument(
+        "--config",
+        metavar="FILE|PRESET",
+        help="TOML file of RunConfig fields (all methods), or a shipped preset: "
+        + ", ".join(presets()),
+    )
     p.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE", help="set a RunConfig field"
     )
@@ -102,7 +107,7 @@ def add_parser(
 def _base_config(args: argparse.Namespace) -> RunConfig:
     from heapgrasp.run_cli import apply_sets
 
-    base = RunConfig.from_toml(args.config) if args.config is not None else RunConfig()
+    base = RunConfig.load(args.config) if args.config is not None else RunConfig()
     base = base.replace(
         {
             "scenes": args.scenes,
