@@ -419,29 +419,15 @@ class RunConfig:
 
     @classmethod
     def from_toml(cls, path: str | Path) -> RunConfig:
-        """Reads a TOML file of parameters (top-level keys)."""
-        p = Path(path)
-        try:
-            data = tomllib.loads(p.read_text())
-        except FileNotFoundError:
-            raise ConfigError(f"config file not found: {p}") from None
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{p}: not valid TOML: {exc}") from None
-        return cls.from_mapping(data, source=str(p))
+        """Reads a TOML file of parameters (top-level keys, and the ``[methods.NAME]``
+        table of the file's own method: :class:`ConfigFile`)."""
+        return ConfigFile.read(path).resolve()
 
     @classmethod
     def load(cls, spec: str | Path) -> RunConfig:
         """``--config``: a TOML file, or the name of a shipped preset (:func:`presets`).
         A file of that name wins over a preset."""
-        path = Path(spec)
-        if path.exists() or path.suffix == ".toml" or len(path.parts) > 1:
-            return cls.from_toml(path)
-        shipped = presets()
-        if str(spec) in shipped:
-            return cls.from_toml(shipped[str(spec)])
-        raise ConfigError(
-            f"config: {str(spec)!r} is neither a file nor a preset (presets: {', '.join(shipped)})"
-        )
+        return ConfigFile.load(spec).resolve()
 
     def replace(self, changes: Mapping[str, Any], *, source: str = "config") -> RunConfig:
         """A copy with ``changes`` applied (``None`` values are ignored)."""
@@ -480,6 +466,70 @@ class RunConfig:
     def to_dict(self) -> dict[str, Any]:
         """All parameters as plain data (JSON/TOML-ready)."""
         return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class ConfigFile:
+    """A ``--config`` file or preset: :class:`RunConfig` fields at top level, for every
+    method, and optional tables ``[methods.NAME]`` whose fields apply on top of them when
+    the run's method is ``NAME``, e.g. a preset's baseline run as it was measured::
+
+        scene_memory = true
+
+        [methods.no-vp]
+        scene_memory = false
+
+    Precedence: defaults < top level < the method's table < flags < ``--set``."""
+
+    fields: Mapping[str, Any]
+    methods: Mapping[str, Mapping[str, Any]]
+    source: str
+
+    @classmethod
+    def read(cls, path: str | Path) -> ConfigFile:
+        """Parses and checks a TOML file; every error names the file and the key."""
+        p = Path(path)
+        try:
+            data = tomllib.loads(p.read_text())
+        except FileNotFoundError:
+            raise ConfigError(f"config file not found: {p}") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{p}: not valid TOML: {exc}") from None
+        tables = data.pop("methods", {})
+        if not isinstance(tables, dict) or not all(isinstance(t, dict) for t in tables.values()):
+            raise ConfigError(f"{p}: 'methods' must hold tables [methods.NAME]; got {tables!r}")
+        unknown = [m for m in tables if m not in METHODS]
+        if unknown:
+            raise ConfigError(
+                f"{p}: [methods.{unknown[0]}]: unknown method; choose among {', '.join(METHODS)}"
+            )
+        loaded = cls(data, tables, str(p))
+        loaded.resolve()  # every error now, before anything runs
+        for method in tables:
+            loaded.resolve(method)
+        return loaded
+
+    @classmethod
+    def load(cls, spec: str | Path) -> ConfigFile:
+        """A TOML file, or the name of a shipped preset (:func:`presets`); a file of that
+        name wins over a preset."""
+        path = Path(spec)
+        if path.exists() or path.suffix == ".toml" or len(path.parts) > 1:
+            return cls.read(path)
+        shipped = presets()
+        if str(spec) in shipped:
+            return cls.read(shipped[str(spec)])
+        raise ConfigError(
+            f"config: {str(spec)!r} is neither a file nor a preset (presets: {', '.join(shipped)})"
+        )
+
+    def resolve(self, method: str | None = None) -> RunConfig:
+        """The config for ``method`` (default: the file's own): the top level, then that
+        method's table. The method itself is not set (flags and ``--set`` may still)."""
+        config = RunConfig.from_mapping(self.fields, source=self.source)
+        name = config.method if method is None else method
+        table = self.methods.get(name, {})
+        return config.replace(table, source=f"{self.source} [methods.{name}]")
 
 
 def object_library(config: RunConfig) -> ObjectLibrary:

@@ -22,6 +22,7 @@ from heapgrasp.config import (
     MOUNTS,
     VIEW_PLANNERS,
     ConfigError,
+    ConfigFile,
     RunConfig,
     presets,
 )
@@ -132,11 +133,17 @@ def apply_sets(config: RunConfig, items: list[str]) -> RunConfig:
 
 
 def config_from_args(args: argparse.Namespace) -> RunConfig:
-    """The :class:`RunConfig` of parsed ``heapgrasp run`` arguments."""
-    config = RunConfig.load(args.config) if args.config is not None else RunConfig()
+    """The :class:`RunConfig` of parsed ``heapgrasp run`` arguments: defaults <
+    ``--config`` (its top level, then its table for the run's method) < flags < ``--set``."""
     flags = {field: getattr(args, dest) for dest, field in _FLAGS.items()}
+    sets = parse_sets(args.set)
+    if args.config is None:
+        config = RunConfig()
+    else:
+        method = sets.get("method", flags.get("method"))
+        config = ConfigFile.load(args.config).resolve(method if isinstance(method, str) else None)
     config = config.replace(flags, source="command line")
-    return apply_sets(config, args.set)
+    return config.replace(sets, source="--set")
 
 
 def run_command(args: argparse.Namespace) -> int:

@@ -20,11 +20,11 @@ import json
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from heapgrasp.config import METHODS, ConfigError, RunConfig, presets
+from heapgrasp.config import METHODS, ConfigError, ConfigFile, RunConfig, presets
 from heapgrasp.stats import format_interval, methods_differences, success_interval
 
 __all__ = [
@@ -104,20 +104,24 @@ def add_parser(
     return p
 
 
-def _base_config(args: argparse.Namespace) -> RunConfig:
-    from heapgrasp.run_cli import apply_sets
+def _configs(
+    args: argparse.Namespace, methods: Sequence[str]
+) -> tuple[RunConfig, dict[str, RunConfig]]:
+    """The base config (the tables' header) and each method's: defaults < ``--config``
+    (its top level, then its ``[methods.NAME]`` table) < the flags < ``--set``."""
+    from heapgrasp.run_cli import parse_sets
 
-    base = RunConfig.load(args.config) if args.config is not None else RunConfig()
-    base = base.replace(
-        {
-            "scenes": args.scenes,
-            "objects": args.objects,
-            "seed": args.seed,
-            "layout": args.layout,
-        },
-        source="command line",
-    )
-    return apply_sets(base, args.set)
+    loaded = ConfigFile.load(args.config) if args.config is not None else None
+    flags = {"scenes": args.scenes, "objects": args.objects, "seed": args.seed}
+    flags["layout"] = args.layout
+    sets = parse_sets(args.set)
+
+    def one(method: str | None) -> RunConfig:
+        config = loaded.resolve(method) if loaded is not None else RunConfig()
+        config = config.replace(flags, source="command line")
+        return config.replace(sets, source="--set")
+
+    return one(None), {m: one(m) for m in methods if m in METHODS}
 
 
 def run_bench(
@@ -129,8 +133,11 @@ def run_bench(
     resume: bool = False,
     progress: bool = True,
     figures: bool = True,
+    per_method: Mapping[str, RunConfig] | None = None,
 ) -> dict[str, dict[str, Any]]:
-    """Runs every method on the same scenes; writes the tables (and figures)."""
+    """Runs every method on the same scenes; writes the tables (and figures). A method
+    runs with ``base``, or with its entry in ``per_method`` (a config file's
+    ``[methods.NAME]`` table applied), its ``method`` set to it."""
     from heapgrasp.run import run
 
     bad = [m for m in methods if m not in METHODS]
@@ -140,7 +147,7 @@ def run_bench(
     groups = scene_groups(base.scenes)
     summaries: dict[str, dict[str, Any]] = {}
     for method in methods:
-        config = base.replace({"method": method})
+        config = (per_method or {}).get(method, base).replace({"method": method})
         t0 = time.perf_counter()
         summaries[method] = run(
             config,
@@ -277,8 +284,8 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
 def command(args: argparse.Namespace) -> int:
     """Runs ``heapgrasp bench sim``; returns the exit status."""
     try:
-        base = _base_config(args)
         methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+        base, per_method = _configs(args, methods)
         out: Path = args.out or Path("runs") / f"bench-sim-{time.strftime('%Y%m%d-%H%M%S')}"
         summaries = run_bench(
             base,
@@ -288,6 +295,7 @@ def command(args: argparse.Namespace) -> int:
             resume=args.resume,
             progress=not args.quiet,
             figures=not args.no_figures,
+            per_method=per_method,
         )
     except ConfigError as exc:
         print(f"heapgrasp bench sim: {exc}", file=sys.stderr)
