@@ -43,6 +43,7 @@ __all__ = [
     "TARGET_REGIONS",
     "VIEW_PLANNERS",
     "ConfigError",
+    "ConfigFile",
     "RunConfig",
     "object_library",
     "presets",
@@ -481,7 +482,7 @@ class ConfigFile:
 
     Precedence: defaults < top level < the method's table < flags < ``--set``."""
 
-    fields: Mapping[str, Any]
+    top_level: Mapping[str, Any]
     methods: Mapping[str, Mapping[str, Any]]
     source: str
 
@@ -526,7 +527,7 @@ class ConfigFile:
     def resolve(self, method: str | None = None) -> RunConfig:
         """The config for ``method`` (default: the file's own): the top level, then that
         method's table. The method itself is not set (flags and ``--set`` may still)."""
-        config = RunConfig.from_mapping(self.fields, source=self.source)
+        config = RunConfig.from_mapping(self.top_level, source=self.source)
         name = config.method if method is None else method
         table = self.methods.get(name, {})
         return config.replace(table, source=f"{self.source} [methods.{name}]")
