@@ -11,6 +11,7 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +28,7 @@ from heapgrasp.config import (
     presets,
 )
 
-__all__ = ["add_parser", "apply_sets", "config_from_args", "run_command"]
+__all__ = ["add_parser", "compose", "config_from_args", "parse_sets", "run_command"]
 
 _FLAGS = {
     "method": "method",
@@ -127,23 +128,28 @@ def parse_sets(items: list[str]) -> dict[str, Any]:
     return extra
 
 
-def apply_sets(config: RunConfig, items: list[str]) -> RunConfig:
-    """``config`` with ``--set KEY=VALUE`` items applied (see :func:`parse_sets`)."""
-    return config.replace(parse_sets(items), source="--set")
+def compose(
+    loaded: ConfigFile | None,
+    flags: Mapping[str, Any],
+    sets: Mapping[str, Any],
+    method: str | None = None,
+) -> RunConfig:
+    """A run's :class:`RunConfig`: defaults < ``loaded`` (its top level, then its table
+    for ``method``, by default the method that ``flags`` or ``sets`` name) < ``flags``
+    (``None`` = not given) < ``sets`` (``--set``, see :func:`parse_sets`)."""
+    if method is None:
+        named = sets.get("method", flags.get("method"))
+        method = named if isinstance(named, str) else None
+    config = loaded.resolve(method) if loaded is not None else RunConfig()
+    config = config.replace(flags, source="command line")
+    return config.replace(sets, source="--set")
 
 
 def config_from_args(args: argparse.Namespace) -> RunConfig:
-    """The :class:`RunConfig` of parsed ``heapgrasp run`` arguments: defaults <
-    ``--config`` (its top level, then its table for the run's method) < flags < ``--set``."""
+    """The :class:`RunConfig` of parsed ``heapgrasp run`` arguments (:func:`compose`)."""
+    loaded = ConfigFile.load(args.config) if args.config is not None else None
     flags = {field: getattr(args, dest) for dest, field in _FLAGS.items()}
-    sets = parse_sets(args.set)
-    if args.config is None:
-        config = RunConfig()
-    else:
-        method = sets.get("method", flags.get("method"))
-        config = ConfigFile.load(args.config).resolve(method if isinstance(method, str) else None)
-    config = config.replace(flags, source="command line")
-    return config.replace(sets, source="--set")
+    return compose(loaded, flags, parse_sets(args.set))
 
 
 def run_command(args: argparse.Namespace) -> int:

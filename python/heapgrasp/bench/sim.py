@@ -107,21 +107,17 @@ def add_parser(
 def _configs(
     args: argparse.Namespace, methods: Sequence[str]
 ) -> tuple[RunConfig, dict[str, RunConfig]]:
-    """The base config (the tables' header) and each method's: defaults < ``--config``
-    (its top level, then its ``[methods.NAME]`` table) < the flags < ``--set``."""
-    from heapgrasp.run_cli import parse_sets
+    """The base config (the tables' header) and each method's
+    (:func:`heapgrasp.run_cli.compose`: ``--config``, its ``[methods.NAME]`` table, the
+    flags, ``--set``)."""
+    from heapgrasp.run_cli import compose, parse_sets
 
     loaded = ConfigFile.load(args.config) if args.config is not None else None
     flags = {"scenes": args.scenes, "objects": args.objects, "seed": args.seed}
     flags["layout"] = args.layout
     sets = parse_sets(args.set)
-
-    def one(method: str | None) -> RunConfig:
-        config = loaded.resolve(method) if loaded is not None else RunConfig()
-        config = config.replace(flags, source="command line")
-        return config.replace(sets, source="--set")
-
-    return one(None), {m: one(m) for m in methods if m in METHODS}
+    per_method = {m: compose(loaded, flags, sets, m) for m in methods if m in METHODS}
+    return compose(loaded, flags, sets), per_method
 
 
 def run_bench(
