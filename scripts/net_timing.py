@@ -15,10 +15,10 @@ from functools import partial
 
 import numpy as np
 import torch
-from heapgrasp.grasping.network import NetworkGraspPlanner
-from heapgrasp.grasping.volumes import GridFrame
+from heapgrasp.planning.grasp_network import NetworkGraspPlanner
+from heapgrasp.planning.volumes import GridFrame
 from heapgrasp.nets import GraspNet, ViewNet
-from heapgrasp.viewplan_network import NetworkViewScorer
+from heapgrasp.planning.view_network import NetworkViewScorer
 
 FRAME = GridFrame((-0.15, -0.15, 0.0), 0.30, 40)
 

@@ -1,6 +1,6 @@
 """NumPy reference of the antipodal planner's per-orientation search.
 
-This is the planner's original NumPy implementation (heapgrasp.grasping.antipodal before
+This is the planner's original NumPy implementation (heapgrasp.planning.antipodal before
 the search moved to the Rust core, ``heapgrasp._core.antipodal_grasps``), kept as the
 test oracle. The only changes: matrix products are written as explicit sums of products
 (in the order the core evaluates them) and the 3 x 3 solve is plain Gaussian elimination
@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from heapgrasp.grasping.antipodal import _EPS
+from heapgrasp.planning.antipodal import _EPS
 
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]

@@ -1,4 +1,4 @@
-"""NumPy reference of the silhouette check (``heapgrasp.roofs.keep_silhouettes``).
+"""NumPy reference of the silhouette check (``heapgrasp.perception.roofs.keep_silhouettes``).
 
 This is the check's original NumPy implementation, from before it moved to the Rust
 core (``heapgrasp._core.keep_silhouettes``), kept as the test oracle. The core does the
@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
-from heapgrasp.roofs import SilhouetteView
+from heapgrasp.perception.roofs import SilhouetteView
 from scipy import ndimage
 
 F32 = npt.NDArray[np.float32]
@@ -51,7 +51,7 @@ def keep_silhouettes(
     voxel_size: float,
     views: Sequence[SilhouetteView],
 ) -> F32:
-    """``heapgrasp.roofs.keep_silhouettes`` as NumPy computed it (valid input only)."""
+    """``heapgrasp.perception.roofs.keep_silhouettes`` as NumPy computed it (valid input only)."""
     f = np.asarray(full, dtype=np.float32)
     t = np.asarray(trimmed, dtype=np.float32)
     o = np.asarray(origin, dtype=np.float64)

@@ -8,11 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from heapgrasp import OccupancyGrid
-from heapgrasp.grasping.antipodal import AntipodalPlanner, GripperGeometry, grasp_orientations
-from heapgrasp.grasping.volumes import (
+from heapgrasp.geometry.grid import GridFrame
+from heapgrasp.geometry.gripper import GripperGeometry
+from heapgrasp.planning.antipodal import AntipodalPlanner, grasp_orientations
+from heapgrasp.planning.volumes import (
     GraspPlanner,
     GraspVolumes,
-    GridFrame,
     quaternion_to_matrix,
     select_candidates,
 )
@@ -231,9 +232,9 @@ def test_bad_grids_are_rejected(planner: AntipodalPlanner) -> None:
 
 def test_a_carved_box_is_grasped_in_simulation(tmp_path: Path) -> None:
     from conftest import box_model
-    from heapgrasp.sim.camera import CameraSpec
+    from heapgrasp.geometry.camera import CameraSpec
+    from heapgrasp.geometry.motion import ViewSphere
     from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand, execute_grasp
-    from heapgrasp.sim.motion import ViewSphere
     from heapgrasp.sim.objects import ObjectLibrary
     from heapgrasp.sim.world import SimWorld
 
@@ -332,7 +333,7 @@ def _core_args(planner: AntipodalPlanner) -> dict:
         captured.update(zip(names, args, strict=True))
         return (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0))
 
-    import heapgrasp.grasping.antipodal as mod
+    import heapgrasp.planning.antipodal as mod
 
     real = mod.antipodal_grasps
     mod.antipodal_grasps = fake  # type: ignore[assignment]

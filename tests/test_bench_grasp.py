@@ -17,8 +17,8 @@ from heapgrasp.bench.grasp import (
     summarize,
 )
 from heapgrasp.cli import build_parser, main
-from heapgrasp.config import ConfigError, RunConfig
-from heapgrasp.sim.motion import ViewSphere
+from heapgrasp.geometry.motion import ViewSphere
+from heapgrasp.loop.config import ConfigError, RunConfig
 
 
 def _parse(*argv: str) -> Any:
@@ -174,7 +174,7 @@ def test_one_scene_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]
 
 
 def test_the_config_defaults_are_the_planners_own() -> None:
-    from heapgrasp.grasping.antipodal import AntipodalPlanner
+    from heapgrasp.planning.antipodal import AntipodalPlanner
 
     planner = AntipodalPlanner()
     config = GraspBenchConfig()

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from heapgrasp.bench.sim import markdown_tables, run_bench, scene_groups
 from heapgrasp.cli import main
-from heapgrasp.config import ConfigError, RunConfig
+from heapgrasp.loop.config import ConfigError, RunConfig
 
 
 def test_scene_groups_are_four_equal_blocks() -> None:

@@ -7,8 +7,15 @@ from pathlib import Path
 
 import pytest
 from heapgrasp.cli import build_parser, main
-from heapgrasp.config import ConfigError, ConfigFile, RunConfig, presets
-from heapgrasp.run_cli import config_from_args
+from heapgrasp.cli.run import config_from_args
+from heapgrasp.loop.config import (
+    GROUPS,
+    PAPER_EXTENSIONS,
+    ConfigError,
+    ConfigFile,
+    RunConfig,
+    presets,
+)
 
 
 def test_defaults_are_table_one() -> None:
@@ -27,26 +34,19 @@ def test_defaults_are_table_one() -> None:
         ({"L": 0}, "L: must be an integer >= 1; got 0"),
         ({"objects": 2.5}, "objects must be of type int"),
         ({"radius": -0.3}, "radius: must be > 0"),
-        ({"initial_radius": 0.0}, "initial_radius: must be > 0"),
+        ({"start": "below"}, "start: must be one of side, above; got 'below'"),
         ({"noise": 0.7}, "noise: must be in"),
         ({"epsilon": float("nan")}, "epsilon"),
-        ({"oracle_frames": 0}, "oracle_frames: must be an integer >= 1; got 0"),
         ({"roof_radius": float("inf")}, "roof_radius: must be in"),
-        ({"silhouette_views": -1}, "silhouette_views: must be an integer >= 0; got -1"),
         ({"target_radius": -0.05}, r"target_radius: must be in \[0.0, 1.0\]; got -0.05"),
-        ({"circle_closed": 1}, "circle_closed must be of type bool"),
-        ({"final_grasp": "nearest"}, "final_grasp: must be one of target, best"),
-        (
-            {"target_region": "box"},
-            "target_region: must be one of column, gripper, fingers; got 'box'",
-        ),
-        ({"confirm_below": 1.2}, r"confirm_below: must be in \[0.0, 1.0\]; got 1.2"),
-        ({"confirm_waypoints": -1}, "confirm_waypoints: must be an integer >= 0; got -1"),
+        ({"scene_memory": 1}, "scene_memory must be of type bool"),
         ({"stop_below": -0.1}, r"stop_below: must be in \[0.0, 1.0\]; got -0.1"),
         ({"stop_confidence": 2.0}, r"stop_confidence: must be in \[0.0, 1.0\]; got 2.0"),
         ({"stop_detour_weight": -1.0}, r"stop_detour_weight: must be in \[0.0, 100.0\]"),
         ({"move_weight": float("nan")}, r"move_weight: must be in \[0.0, 100.0\]"),
-        ({"stop_after": 0}, "stop_after: must be an integer >= 1; got 0"),
+        # retired experiments are unknown settings now (docs/experiments.md)
+        ({"confirm_below": 0.5}, "unknown parameter 'confirm_below'"),
+        ({"final_grasp": "best"}, "unknown parameter 'final_grasp'"),
         ({"net_device": "gpu"}, "net_device: must be cpu, cuda, cuda:N or auto; got 'gpu'"),
         ({"net_device": "cuda:x"}, "net_device: must be cpu, cuda, cuda:N or auto"),
         ({"lamda": 0.9}, "unknown parameter 'lamda'"),
@@ -96,31 +96,51 @@ def test_cli_reports_bad_config_with_status_2(
 
 
 def test_the_presets_are_the_settings_docs_benchmarks_measured() -> None:
-    # docs/benchmarks.md, "Sweeping until the grasp is sure": runs/SWC-$S with $T $V3
-    # and the --set flags after them; runs/nvp-$S-top with $T
-    assert set(presets()) == {"above", "short-path"}
-    above = RunConfig(initial_radius=0.6, initial_theta=0.0)
+    # docs/benchmarks.md, the short-path table: HEAPGrasp with these settings, from above,
+    # against no-vp from above
+    assert set(presets()) == {"above", "paper", "short-path"}
+    above = RunConfig(start="above")
     assert RunConfig.load("above") == above
     short = above.replace(
-        {"gamma2": 0.0, "stop_below": 0.02, "stop_detour_weight": 0.1, "stop_confidence": 0.92}
-    ).replace(
         {
+            "gamma2": 0.0,
+            "stop_below": 0.02,
+            "stop_detour_weight": 0.1,
+            "stop_confidence": 0.95,
             "move_weight": 0.05,
             "scene_memory": True,
-            "stop_confidence": 0.95,
             "sweep_degrees": 360.0,
             "sweep_step": 30.0,
-            "sweep_stop": True,
         }
     )
     assert RunConfig.load("short-path") == short
-    assert short != RunConfig()  # the defaults stay Table I's
-    # the baselines as measured: no-vp with $T alone differs from the preset's no-vp only
-    # in fields that no baseline reads, and each phase starts afresh
+    assert short != RunConfig()
+    # the baselines as measured: each phase starts afresh
     for method in ("no-vp", "vgn", "hemisphere6"):
         assert ConfigFile.load("short-path").resolve(method) == short.replace(
             {"scene_memory": False}
         )
+
+
+def test_settings_are_grouped_and_the_paper_preset_is_table_one_alone() -> None:
+    c = RunConfig()
+    names = RunConfig.field_names()
+    groups = [RunConfig.field_names(g) for g in GROUPS]
+    assert sorted(n for g in groups for n in g) == sorted(names), "every setting in one group"
+    assert c.group("method")["lam"] == 0.9 and "lam" not in c.group("run")
+    assert RunConfig.source("lam") == "Table I" and RunConfig.source("roof_radius") == "ours"
+    with pytest.raises(ConfigError, match="group: must be one of run, method, extension"):
+        c.group("misc")
+    # every extension has its "off" value in PAPER_EXTENSIONS, and the paper preset is
+    # exactly the defaults with all of them off
+    assert set(PAPER_EXTENSIONS) == set(RunConfig.field_names("extension"))
+    paper = RunConfig.load("paper")
+    assert paper == c.paper_only()
+    assert paper.group("method") == c.group("method") and paper.group("run") == c.group("run")
+    assert paper.critic is None and paper.roof_radius == 0.0 and paper.target_radius == 0.0
+    # the defaults are Table I plus the extensions measured to help
+    on = {k for k, v in PAPER_EXTENSIONS.items() if c.group("extension")[k] != v}
+    assert on == {"roof_radius", "grasp_critic", "failed_grasp_radius", "target_radius"}
 
 
 def test_config_takes_a_file_or_a_preset_and_names_a_bad_one(
@@ -136,9 +156,9 @@ def test_config_takes_a_file_or_a_preset_and_names_a_bad_one(
     assert RunConfig.load("above") == RunConfig(L=4)
     assert main(["run", "--print-config", "--config", "short-path", "--set", "L=2"]) == 0
     out = capsys.readouterr().out
-    assert '"sweep_stop": true' in out and '"L": 2' in out
+    assert '"sweep_degrees": 360.0' in out and '"L": 2' in out
     assert main(["bench", "sim", "--config", "nope", "--out", str(tmp_path / "b")]) == 2
-    assert "'nope' is neither a file nor a preset (presets: above, short-path)" in (
+    assert "'nope' is neither a file nor a preset (presets: above, paper, short-path)" in (
         capsys.readouterr().err
     )
     assert not (tmp_path / "b").exists()
@@ -188,13 +208,11 @@ def test_a_bad_method_table_is_named(tmp_path: Path, text: str, match: str) -> N
         ConfigFile.load(path)
 
 
-def test_the_oracle_scores_with_the_configured_number_of_silhouettes() -> None:
-    from heapgrasp.pipeline import make_view_scorer
-    from heapgrasp.viewplan import OracleViewScorer
+def test_the_oracle_counts_eq14_on_the_configured_column() -> None:
+    from heapgrasp.loop.phase import ORACLE_FRAMES, make_view_scorer
+    from heapgrasp.planning.views import OracleViewScorer
 
-    scorer = make_view_scorer(RunConfig(oracle_frames=40, target_radius=0.05))
-    assert isinstance(scorer, OracleViewScorer) and scorer.frames_per_candidate == 40
-    assert scorer.target_radius == 0.05 and scorer.target_region == "column"
-    gripper = make_view_scorer(RunConfig(target_region="gripper"))
-    assert isinstance(gripper, OracleViewScorer) and gripper.target_region == "gripper"
-    assert make_view_scorer(RunConfig(method="no-vp", oracle_frames=40)) is None
+    scorer = make_view_scorer(RunConfig(target_radius=0.05))
+    assert isinstance(scorer, OracleViewScorer) and scorer.frames_per_candidate == ORACLE_FRAMES
+    assert scorer.target_radius == 0.05
+    assert make_view_scorer(RunConfig(method="no-vp")) is None

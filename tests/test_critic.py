@@ -8,8 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import box_model
-from heapgrasp.config import ConfigError, RunConfig
-from heapgrasp.grasping.critic import (
+from heapgrasp.geometry.grid import GridFrame
+from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.phase import make_critic
+from heapgrasp.loop.protocol import StopReason, run_clutter_removal
+from heapgrasp.planning.critic import (
     CROP_SHAPE,
     N_SCALARS,
     GraspCritic,
@@ -19,7 +22,7 @@ from heapgrasp.grasping.critic import (
     flip_pose,
     view_features,
 )
-from heapgrasp.grasping.critic_train import (
+from heapgrasp.planning.critic_train import (
     Design,
     auc,
     cross_validate,
@@ -27,10 +30,9 @@ from heapgrasp.grasping.critic_train import (
     hull_kind,
     phase_picks,
 )
-from heapgrasp.grasping.volumes import GraspCandidate, GridFrame
-from heapgrasp.pipeline import build_pipeline, make_critic
+from heapgrasp.planning.volumes import GraspCandidate
+from heapgrasp.sim.build import sim_pipeline
 from heapgrasp.sim.objects import ObjectLibrary
-from heapgrasp.sim.protocol import StopReason, run_clutter_removal
 from heapgrasp.sim.world import SimWorld
 
 FRAME = GridFrame((0.0, 0.0, 0.0), 0.30, 40)
@@ -169,7 +171,7 @@ def test_critic_arrays_must_fit_together() -> None:
 
 def test_cnn_critic_runs_in_numpy_as_in_torch_and_round_trips(tmp_path: Path) -> None:
     torch = pytest.importorskip("torch")
-    from heapgrasp.grasping.critic_net import ARRAYS, ConvCritic, _torch_module
+    from heapgrasp.planning.critic_net import ARRAYS, ConvCritic, _torch_module
 
     rng = np.random.default_rng(3)
     _, x, y = synthetic_critic(rng)
@@ -277,8 +279,8 @@ def test_config_and_builder_errors(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="grasp_critic"):
         RunConfig(grasp_critic="")
     assert make_critic(RunConfig(grasp_critic="none")) is None
-    with pytest.raises(ConfigError, match="critic_threshold"):
-        RunConfig(critic_threshold=1.5)
+    with pytest.raises(ConfigError, match="unknown parameter 'critic_threshold'"):
+        RunConfig.from_mapping({"critic_threshold": 0.5})  # retired: docs/experiments.md
     with pytest.raises(FileNotFoundError, match=r"missing\.npz"):
         make_critic(RunConfig(grasp_critic=str(tmp_path / "missing.npz")))
 
@@ -299,8 +301,6 @@ def test_auto_critic_applies_where_the_shipped_weights_were_trained() -> None:
 def test_shipped_critic_loads_with_its_command_and_measurements() -> None:
     critic = make_critic(RunConfig(grasp_critic="default"))
     assert critic is not None
-    lowered = make_critic(RunConfig(grasp_critic="default", critic_threshold=0.25))
-    assert lowered is not None and lowered.threshold == 0.25
     meta = critic.metadata
     assert meta["command"].startswith("heapgrasp critic train")
     cv = meta["cross_validation"]
@@ -313,19 +313,19 @@ def test_loop_with_the_shipped_critic_grasps_a_lone_box(tmp_path: Path) -> None:
     config = RunConfig(objects=1, category="opaque", grasp_critic="default")
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        pipeline = build_pipeline(config, world)
+        pipeline = sim_pipeline(config, world)
         assert pipeline.critic is not None
-        phases, reason = run_clutter_removal(pipeline.robot, pipeline.plan)
+        phases, reason = run_clutter_removal(pipeline.robot, pipeline.plan, truth=pipeline.truth)
     assert reason == StopReason.CLEARED, [p.to_dict()["outcome"] for p in phases]
 
 
 def test_data_phases_can_be_steered_by_a_critic(tmp_path: Path) -> None:
-    from heapgrasp.grasping.critic_data import CriticDataConfig
+    from heapgrasp.data.critic import CriticDataConfig
 
     assert CriticDataConfig().run_config(0).critic is None  # the planner alone by default
     steered = CriticDataConfig(critic="default")
     assert steered.run_config(0).critic == "default"
-    assert steered.run_config(1).initial_theta != steered.run_config(0).initial_theta
+    assert steered.run_config(1).start != steered.run_config(0).start
     with pytest.raises(FileNotFoundError, match=r"nope\.npz"):
         CriticDataConfig(critic=str(tmp_path / "nope.npz"))
     with pytest.raises(ValueError, match="auto"):
@@ -334,7 +334,7 @@ def test_data_phases_can_be_steered_by_a_critic(tmp_path: Path) -> None:
 
 def test_test_split_data_measures_but_never_trains(tmp_path: Path) -> None:
     from heapgrasp.cli import main
-    from heapgrasp.grasping.critic_data import CriticDataConfig, load_dataset
+    from heapgrasp.data.critic import CriticDataConfig, load_dataset
 
     with pytest.raises(ValueError, match="split"):
         CriticDataConfig(split="val")
@@ -360,14 +360,14 @@ def test_test_split_data_measures_but_never_trains(tmp_path: Path) -> None:
 
 def test_data_phases_take_other_run_settings(tmp_path: Path) -> None:
     from heapgrasp.cli import main
-    from heapgrasp.config import ConfigError
-    from heapgrasp.grasping.critic_data import CriticDataConfig, scene_data
+    from heapgrasp.data.critic import CriticDataConfig, scene_data
+    from heapgrasp.loop.config import ConfigError
 
     config = CriticDataConfig(
         scenes=1, objects=2, max_phases=1, max_candidates=1, overrides=(("L", 2),)
     )
     assert config.run_config(0).L == 2 and config.run_config(1).L == 2
-    assert config.run_config(0).initial_theta == 0.0  # the data's own start stays
+    assert config.run_config(0).start == "above"  # the data's own start stays
     assert json.loads(str(scene_data(config, 0)["overrides"])) == {"L": 2}
     with pytest.raises(ValueError, match="method, seed set by the critic data's own"):
         CriticDataConfig(overrides=(("seed", 3), ("method", "vgn")))
@@ -383,7 +383,7 @@ def test_data_phases_take_other_run_settings(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("seeds", [(0,), (-1,), (2, 2), (True,)])
 def test_data_object_seeds_are_checked(seeds: tuple[int, ...]) -> None:
-    from heapgrasp.grasping.critic_data import CriticDataConfig
+    from heapgrasp.data.critic import CriticDataConfig
 
     with pytest.raises(ValueError, match="object_seeds"):
         CriticDataConfig(object_seeds=seeds)
@@ -393,8 +393,9 @@ def test_data_with_extra_objects_never_draws_a_test_object(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     from heapgrasp.cli import main
-    from heapgrasp.config import RunConfig, object_library
-    from heapgrasp.grasping.critic_data import CriticDataConfig, scene_data
+    from heapgrasp.data.critic import CriticDataConfig, scene_data
+    from heapgrasp.loop.config import RunConfig
+    from heapgrasp.sim.build import object_library
 
     test_names = {m.name for m in object_library(RunConfig()).models(split="test")}
     config = CriticDataConfig(scenes=1, objects=5, max_phases=1, max_candidates=1)
@@ -418,7 +419,7 @@ def test_data_of_one_scene_is_consistent_and_trains(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from heapgrasp.cli import main
-    from heapgrasp.grasping.critic_data import CriticDataConfig, scene_data
+    from heapgrasp.data.critic import CriticDataConfig, scene_data
 
     config = CriticDataConfig(scenes=1, objects=2, max_phases=1, max_candidates=3)
     s = scene_data(config, 0)
@@ -459,31 +460,23 @@ def test_data_of_one_scene_is_consistent_and_trains(
     assert main(["critic", "eval", str(out), str(tmp_path / "empty")]) == 1
 
 
-@pytest.mark.parametrize("at_waypoints", [True, False])
-def test_critic_at_waypoints_decides_where_it_scores(tmp_path: Path, at_waypoints: bool) -> None:
+def test_the_critic_scores_the_candidates_wherever_grasps_are_planned(tmp_path: Path) -> None:
     model = box_model(tmp_path, (0.05, 0.04, 0.07))
-    config = RunConfig(
-        objects=1,
-        category="opaque",
-        grasp_critic="default",
-        critic_at_waypoints=at_waypoints,
-        critic_threshold=0.0,
-    )
+    config = RunConfig(objects=1, category="opaque", grasp_critic="default")
+    critic = make_critic(config)
+    assert critic is not None
+    critic.threshold = 0.0  # keep every candidate, to compare them with the plain ones
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        pipeline = build_pipeline(config, world)
-        plain = build_pipeline(config.replace({"grasp_critic": "none"}), world)
+        pipeline = sim_pipeline(config, world, critic=critic)
+        plain = sim_pipeline(config.replace({"grasp_critic": "none"}), world)
         frames = [world.capture(pipeline.initial_pose(), pipeline.camera)]
         pipeline.perception.update(frames)
         plain.perception.update(frames)
-        waypoint = pipeline.grasp_candidates(final=False)
-        final = pipeline.grasp_candidates()
+        scored = pipeline.grasp_candidates()
         reference = plain.grasp_candidates()
     assert reference, "the lone box must have candidates"
-    # At the final grid the critic's probabilities are the scores (any order of them).
-    assert {c.index for c in final} >= {c.index for c in reference}
-    assert [c.score for c in final] == sorted((c.score for c in final), reverse=True)
-    if at_waypoints:
-        assert [c.score for c in waypoint] == [c.score for c in final]
-    else:
-        assert [(c.index, c.score) for c in waypoint] == [(c.index, c.score) for c in reference]
+    # The critic's probabilities are the scores (any order of them).
+    assert {c.index for c in scored} >= {c.index for c in reference}
+    assert [c.score for c in scored] == sorted((c.score for c in scored), reverse=True)
+    assert [c.score for c in scored] != [c.score for c in reference]

@@ -15,13 +15,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 import heapgrasp as hg  # noqa: E402
-from heapgrasp.grasping.network import NetworkGraspPlanner  # noqa: E402
-from heapgrasp.grasping.volumes import (  # noqa: E402
-    GraspPlanner,
-    GraspVolumes,
-    GridFrame,
-    select_candidates,
-)
+from heapgrasp.geometry.grid import GridFrame  # noqa: E402
 from heapgrasp.nets import (  # noqa: E402
     Encoder3d,
     GraspNet,
@@ -35,8 +29,10 @@ from heapgrasp.nets import (  # noqa: E402
     save_weights,
 )
 from heapgrasp.nets.models import _unit_quaternions  # noqa: E402
-from heapgrasp.viewplan import ViewContext, ViewScorer  # noqa: E402
-from heapgrasp.viewplan_network import NetworkViewScorer  # noqa: E402
+from heapgrasp.planning.grasp_network import NetworkGraspPlanner  # noqa: E402
+from heapgrasp.planning.view_network import NetworkViewScorer  # noqa: E402
+from heapgrasp.planning.views import ViewContext, ViewScorer  # noqa: E402
+from heapgrasp.planning.volumes import GraspPlanner, GraspVolumes, select_candidates  # noqa: E402
 
 SMALL = 16  # small grids keep the suite fast; the paper's 40³ is tested once per net
 
@@ -455,8 +451,8 @@ def test_resolve_device_on_cuda(tmp_path):
 
 
 def test_the_config_picks_the_networks_device(tmp_path):
-    from heapgrasp.config import ConfigError, RunConfig
-    from heapgrasp.pipeline import make_grasp_planner, make_view_scorer, net_device
+    from heapgrasp.loop.config import ConfigError, RunConfig
+    from heapgrasp.loop.phase import make_grasp_planner, make_view_scorer, net_device
 
     grasp = save_weights(_grasp_net(40), tmp_path / "g.pt", kind="grasp", metadata={})
     view = save_weights(_view_net(40, (40, 20)), tmp_path / "v.pt", kind="view", metadata={})
@@ -512,8 +508,8 @@ def test_no_torch_import_at_package_import_and_clear_error():
         """
         import sys
         sys.modules["torch"] = None  # as if PyTorch were not installed
-        import heapgrasp, heapgrasp.grasping.volumes, heapgrasp.viewplan
-        import heapgrasp.grasping.network as gn, heapgrasp.viewplan_network as vn
+        import heapgrasp, heapgrasp.planning.volumes, heapgrasp.planning.views
+        import heapgrasp.planning.grasp_network as gn, heapgrasp.planning.view_network as vn
         for make in (lambda: gn.NetworkGraspPlanner("w.pt"),
                      lambda: vn.NetworkViewScorer("w.pt")):
             try:

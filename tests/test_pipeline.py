@@ -11,10 +11,11 @@ from typing import Any
 import numpy as np
 import pytest
 from conftest import box_model
-from heapgrasp.config import ConfigError, RunConfig
-from heapgrasp.grasping.volumes import GraspCandidate
-from heapgrasp.perception import SilhouettePerception
-from heapgrasp.pipeline import build_pipeline
+from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.phase import MEMORY_TOLERANCE, SILHOUETTE_VIEWS
+from heapgrasp.loop.protocol import PlanResult, StopReason, run_clutter_removal
+from heapgrasp.perception.silhouette import SilhouettePerception
+from heapgrasp.planning.volumes import GraspCandidate
 from heapgrasp.run import (
     RESULTS_FILE,
     SCENES_FILE,
@@ -23,8 +24,8 @@ from heapgrasp.run import (
     load_records,
     run,
 )
+from heapgrasp.sim.build import sim_pipeline
 from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
-from heapgrasp.sim.protocol import PlanResult, StopReason, run_clutter_removal
 from heapgrasp.sim.world import SimWorld
 
 BOX = (0.05, 0.04, 0.07)
@@ -36,8 +37,8 @@ def test_one_object_scene_ends_in_a_successful_grasp(tmp_path: Path, method: str
     config = RunConfig(method=method, objects=1, category="opaque")
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        pipeline = build_pipeline(config, world)
-        phases, reason = run_clutter_removal(pipeline.robot, pipeline.plan)
+        pipeline = sim_pipeline(config, world)
+        phases, reason = run_clutter_removal(pipeline.robot, pipeline.plan, truth=pipeline.truth)
     assert reason == StopReason.CLEARED, [p.to_dict()["outcome"] for p in phases]
     assert [p.outcome for p in phases] == ["success"]
     rec = phases[0].to_dict()
@@ -59,13 +60,13 @@ def test_transparent_object_is_invisible_to_the_depth_baseline(tmp_path: Path) -
     config = RunConfig(method="vgn", objects=1, category="transparent")
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="transparent", seed=0, models=[model])
-        pipeline = build_pipeline(config, world)
+        pipeline = sim_pipeline(config, world)
         result = pipeline.plan()
         # Depth passes through glass: nothing is measured, so nothing can be grasped.
         assert pipeline.perception.grasp_input().sum() < 5
         assert result.grasp is None
         # Silhouettes see it.
-        sfs = build_pipeline(config.replace({"method": "no-vp"}), world)
+        sfs = sim_pipeline(config.replace({"method": "no-vp"}), world)
         assert sfs.plan().grasp is not None
 
 
@@ -73,7 +74,7 @@ def test_a_phase_starts_beside_the_scene_looking_at_it(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        pipeline = build_pipeline(RunConfig(method="no-vp"), world)
+        pipeline = sim_pipeline(RunConfig(method="no-vp"), world)
         p0 = pipeline.initial_pose()
         centre = pipeline.sphere.center_array
         eye = p0[:3, 3]
@@ -81,15 +82,14 @@ def test_a_phase_starts_beside_the_scene_looking_at_it(tmp_path: Path) -> None:
         assert eye[1] < centre[1] - 0.3  # the bin's side (-y)
         to_target = pipeline.sphere.target_array - eye
         assert np.dot(p0[:3, 2], to_target / np.linalg.norm(to_target)) == pytest.approx(1.0)
-        top = build_pipeline(
-            RunConfig(method="no-vp", initial_radius=0.33, initial_theta=0.0), world
-        ).initial_pose()
-        np.testing.assert_allclose(top, pipeline.sphere.pose(0.0, 0.0), atol=1e-12)
+        top = sim_pipeline(RunConfig(method="no-vp", start="above"), world).initial_pose()
+        np.testing.assert_allclose(top[:3, 3], centre + np.array([0.0, 0.0, 0.6]), atol=1e-12)
+        assert top[:3, 2] @ [0.0, 0.0, -1.0] == pytest.approx(1.0)  # looking down
         # the silhouette hull's roofs are trimmed for the planner as configured
         assert isinstance(pipeline.perception, SilhouettePerception)
         assert pipeline.perception.roof_radius == RunConfig().roof_radius > 0
-        assert pipeline.perception.silhouette_views == RunConfig().silhouette_views > 0
-        raw = build_pipeline(RunConfig(method="no-vp", roof_radius=0.0), world).perception
+        assert pipeline.perception.silhouette_views == SILHOUETTE_VIEWS > 0
+        raw = sim_pipeline(RunConfig(method="no-vp", roof_radius=0.0), world).perception
         assert isinstance(raw, SilhouettePerception) and raw.roof_radius == 0.0
 
 
@@ -130,7 +130,7 @@ def _plan_scripted(
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
         views = _ScriptedViews(view_level)
-        pipeline = build_pipeline(config, world, view_scorer=views)
+        pipeline = sim_pipeline(config, world, view_scorer=views)
         calls = iter(script)
         pipeline.grasp_candidates = lambda final=True: next(calls)  # type: ignore[method-assign]
         return pipeline.plan(), views
@@ -188,7 +188,7 @@ def test_move_weight_takes_the_nearer_of_equally_good_views(tmp_path: Path) -> N
     config = RunConfig(gamma2=0.0, move_weight=0.05)
     near, _ = _plan_scripted(model, config, script, view_level=0.1)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
-        pipeline = build_pipeline(config, world, view_scorer=_ScriptedViews())
+        pipeline = sim_pipeline(config, world, view_scorer=_ScriptedViews())
         p0 = pipeline.initial_pose()[:3, 3]
         gaps = np.linalg.norm(pipeline.candidates[..., :3, 3] - p0, axis=-1)
     # the nearest candidates score 0 (they see nothing new): the next ring is taken
@@ -214,82 +214,14 @@ def test_with_gamma2_at_p0_the_grasp_at_p0_is_planned_and_anchors_eq16(tmp_path:
     assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.07)
 
 
-def test_final_grasp_best_takes_the_highest_score_on_the_last_grid(tmp_path: Path) -> None:
-    # Eq. 16 would keep 0.24 (closest to the last target), the
-    # "best" rule takes 0.07 (score 0.99); the views are planned the same way.
-    model = box_model(tmp_path, BOX)
-    script = [
-        # (nothing is planned at p0: gamma2_first = 0)
-        [_candidate(0.06, 0.5), _candidate(0.25, 0.95)],
-        [_candidate(0.07, 0.99), _candidate(0.24, 0.6)],
-        [_candidate(0.24, 0.6), _candidate(0.07, 0.99)],
-    ]
-    result, views = _plan_scripted(model, RunConfig(final_grasp="best"), script)
-    assert [t[0] for t in views.targets[1:]] == pytest.approx([0.25, 0.24])
-    assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.07)
-    assert result.grasp is not None
-    assert result.grasp.pose[0, 3] == pytest.approx(0.07)
-
-
-@pytest.mark.parametrize(("confirm_below", "extra"), [(0.0, 0), (0.8, 1), (0.95, 2)])
-def test_an_unconfident_final_grasp_takes_more_view_waypoints(
-    tmp_path: Path, confirm_below: float, extra: int
-) -> None:
-    # Final grid: 0.24 at 0.6. Below confirm_below the camera takes another waypoint
-    # toward it (the target steers the view scores) and plans again: 0.23 at 0.9, then
-    # 0.22 at 0.99; at most confirm_waypoints = 2 extra waypoints.
-    model = box_model(tmp_path, BOX)
-    script = [
-        # (nothing is planned at p0: gamma2_first = 0)
-        [_candidate(0.25, 0.95)],
-        [_candidate(0.24, 0.9)],
-        [_candidate(0.24, 0.6)],  # final grid
-        [_candidate(0.23, 0.9)],  # after the first extra waypoint
-        [_candidate(0.22, 0.99)],  # after the second
-    ]
-    config = RunConfig(confirm_below=confirm_below, confirm_waypoints=2)
-    result, views = _plan_scripted(model, config, script)
-    assert result.extra["confirmation_waypoints"] == extra
-    assert len(result.extra["waypoints"]) == 3 + extra
-    chosen = [0.24, 0.23, 0.22][extra]
-    assert result.extra["target_grasp"]["position"][0] == pytest.approx(chosen)
-    # Each extra waypoint is planned toward the grasp it is to confirm.
-    assert [t[0] for t in views.targets[3:]] == pytest.approx([0.24, 0.23][:extra])
-    assert [w["gamma2"] for w in result.extra["waypoints"][3:]] == [0.35] * extra
-
-
-@pytest.mark.parametrize(("confirm_below", "extra"), [(0.0, 0), (0.5, 1)])
-def test_no_final_grasp_takes_a_view_waypoint_only_when_confirming(
-    tmp_path: Path, confirm_below: float, extra: int
-) -> None:
-    # No candidate on the final grid: the paper's loop (confirm_below = 0) ends the
-    # phase without a grasp; with confirmation on, one more waypoint finds 0.23.
-    model = box_model(tmp_path, BOX)
-    script: list[list[GraspCandidate]] = [
-        # (nothing is planned at p0: gamma2_first = 0)
-        [_candidate(0.25, 0.95)],
-        [_candidate(0.24, 0.9)],
-        [],  # final grid
-        [_candidate(0.23, 0.9)],  # after the extra waypoint
-    ]
-    config = RunConfig(confirm_below=confirm_below)
-    result, _ = _plan_scripted(model, config, script)
-    assert result.extra["confirmation_waypoints"] == extra
-    assert len(result.extra["waypoints"]) == 3 + extra
-    assert (result.grasp is None) == (extra == 0)
-
-
 @pytest.mark.parametrize(
     ("changes", "view_level", "waypoints"),
     [
         ({}, 0.0, 3),  # the paper: exactly L waypoints
         ({"stop_below": 0.02}, 0.0, 1),  # nothing left to carve at the first waypoint
         ({"stop_below": 0.02}, 0.05, 3),  # every look still carves 5 % of the region
-        ({"stop_below": 0.02, "stop_after": 2}, 0.0, 2),
         ({"stop_below": 0.02, "stop_confidence": 0.95}, 0.0, 2),  # 0.9 is too doubtful
         ({"stop_below": 0.02, "stop_confidence": 0.999}, 0.0, 3),
-        # the waypoints' grasps were not scored by the critic: the final grid is planned
-        ({"stop_below": 0.02, "critic_at_waypoints": False}, 0.0, 1),
         # 5 % is worth no detour at 100 per metre: only the camera's own candidate lies
         # on the way to the grasp, and it sees nothing new.
         ({"stop_below": 0.02, "stop_detour_weight": 100.0}, 0.05, 1),
@@ -310,10 +242,8 @@ def test_viewing_stops_early_where_no_look_would_carve_the_target(
     # Planned at the k-th waypoint from the stop_after-th on (not at all without the
     # early stop), then on the final grid, which is not planned again after a stop: the
     # script runs dry if it is.
-    first = changes.get("stop_after", 1) if changes else 3
+    first = 1 if changes else 3
     script = planned[first - 1 : waypoints]
-    if changes.get("critic_at_waypoints") is False:
-        script.append(planned[waypoints - 1])
     config = RunConfig(gamma2=0.0, **changes)
     result, views = _plan_scripted(model, config, script, view_level)
     extra = result.extra
@@ -338,10 +268,14 @@ def test_a_phase_that_never_stopped_sweeps_along_the_rim(
     tmp_path: Path, view_level: float, stops: bool
 ) -> None:
     # sweep_degrees: only a phase that took all L waypoints goes on, along the rim of
-    # the candidates, by that much azimuth; one that stopped early grasps at once.
+    # the candidates, by at most that much azimuth while its grasp is unsure; one that
+    # stopped early grasps at once.
     model = box_model(tmp_path, BOX)
-    script = [[_candidate(0.24, 0.99)]] * 3
-    config = RunConfig(gamma2=0.0, stop_below=0.02, sweep_degrees=90.0, sweep_step=45.0)
+    sure, unsure = [_candidate(0.24, 0.99)], [_candidate(0.24, 0.9)]
+    script = [sure, sure, unsure, unsure]
+    config = RunConfig(
+        gamma2=0.0, stop_below=0.02, stop_confidence=0.95, sweep_degrees=90.0, sweep_step=45.0
+    )
     result, _ = _plan_scripted(model, config, script, view_level)
     waypoints = result.extra["waypoints"]
     swept = [w for w in waypoints if w.get("sweep")]
@@ -351,7 +285,7 @@ def test_a_phase_that_never_stopped_sweeps_along_the_rim(
     assert len(waypoints) == 5 and len(swept) == 2 and waypoints[3:] == swept
     assert all(w["frames"] > 0 for w in swept)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
-        sphere = build_pipeline(config, world, view_scorer=_ScriptedViews()).sphere
+        sphere = sim_pipeline(config, world, view_scorer=_ScriptedViews()).sphere
     rim = config.theta_max * (config.V - 1) / config.V
     start = sphere.spherical(np.asarray(waypoints[2]["position"]))[0]
     for k, w in enumerate(swept, start=1):
@@ -367,7 +301,7 @@ def test_a_phase_that_never_stopped_sweeps_along_the_rim(
 def test_a_sweep_with_sweep_stop_ends_where_the_grasp_is_sure(
     tmp_path: Path, sure_at: int | None
 ) -> None:
-    # sweep_stop: grasps are planned at each of the sweep's waypoints, and the sweep
+    # grasps are planned at each of the sweep's waypoints, and the sweep
     # ends at the first whose best grasp reaches stop_confidence; that grid's grasps
     # are the final ones (not planned again).
     model = box_model(tmp_path, BOX)
@@ -382,7 +316,6 @@ def test_a_sweep_with_sweep_stop_ends_where_the_grasp_is_sure(
         stop_confidence=0.95,
         sweep_degrees=180.0,
         sweep_step=45.0,
-        sweep_stop=True,
     )
     result, _ = _plan_scripted(model, config, script, view_level=0.05)
     swept = [w for w in result.extra["waypoints"] if w.get("sweep")]
@@ -394,28 +327,20 @@ def test_a_sweep_with_sweep_stop_ends_where_the_grasp_is_sure(
     assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.25)
 
 
-def test_with_sweep_stop_a_phase_that_found_no_grasp_does_not_sweep(tmp_path: Path) -> None:
+def test_a_phase_that_found_no_grasp_does_not_sweep(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
-    config = RunConfig(
-        gamma2=0.0, stop_below=0.02, stop_confidence=0.95, sweep_degrees=180.0, sweep_stop=True
-    )
+    config = RunConfig(gamma2=0.0, stop_below=0.02, stop_confidence=0.95, sweep_degrees=180.0)
     result, _ = _plan_scripted(model, config, [[], [], []], view_level=0.05)
     waypoints = result.extra["waypoints"]
     assert len(waypoints) == 3 and not any(w.get("sweep") for w in waypoints)
     assert result.extra["target_grasp"] is None
-    # sweep_stop without a sweep is refused; without sweep_stop the phase sweeps
-    with pytest.raises(ConfigError, match="sweep_stop"):
-        config.replace({"sweep_degrees": 0.0})
-    plain = config.replace({"sweep_stop": False})
-    result, _ = _plan_scripted(model, plain, [[], [], []], view_level=0.05)
-    assert sum(bool(w.get("sweep")) for w in result.extra["waypoints"]) == 4
 
 
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
-        pipeline = build_pipeline(RunConfig(method="no-vp"), world)
+        pipeline = sim_pipeline(RunConfig(method="no-vp"), world)
         planned = pipeline.plan()
         assert planned.grasp is not None
         first = planned.grasp.pose[:3, 3].copy()
@@ -446,7 +371,7 @@ def test_with_scene_memory_the_next_phase_starts_from_the_last_ones_hull(
     config = RunConfig(method="heapgrasp", scene_memory=True, L=2)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=2, category="opaque", seed=0, models=[model])
-        pipeline = build_pipeline(config, world)
+        pipeline = sim_pipeline(config, world)
         assert isinstance(pipeline.perception, SilhouettePerception)
         first = pipeline.plan()
         assert first.extra["memory"] is None  # a scene's first phase: nothing yet
@@ -457,10 +382,10 @@ def test_with_scene_memory_the_next_phase_starts_from_the_last_ones_hull(
         assert pipeline.perception.grid.count_high_confidence(config.lam) >= carved
         again = pipeline.plan()
         # A run without it records nothing.
-        plain = build_pipeline(RunConfig(method="no-vp"), world).plan()
+        plain = sim_pipeline(RunConfig(method="no-vp"), world).plan()
     record = again.extra["memory"]
     assert record is not None and record["kept"], record
-    assert record["restored_voxels"] <= config.memory_tolerance
+    assert record["restored_voxels"] <= MEMORY_TOLERANCE
     assert "memory" not in plain.extra
 
 
@@ -491,10 +416,10 @@ def test_an_interrupted_run_resumes_without_losing_scenes(tmp_path: Path) -> Non
     # A run saved before a parameter existed ran as its default: it may be resumed with
     # the default, not with another value.
     saved_config = json.loads((out / "config.json").read_text())
-    del saved_config["confirm_below"]
+    del saved_config["move_weight"]
     (out / "config.json").write_text(json.dumps(saved_config))
-    with pytest.raises(ConfigError, match=r"confirm_below: 0.0 -> 0.5"):
-        run(config.replace({"confirm_below": 0.5}), out, resume=True, progress=False)
+    with pytest.raises(ConfigError, match=r"move_weight: 0.0 -> 0.5"):
+        run(config.replace({"move_weight": 0.5}), out, resume=True, progress=False)
     summary = run(config, out, resume=True, progress=False)
     records = load_records(out)
     assert sorted(r["scene"] for r in records) == [0, 1, 2]

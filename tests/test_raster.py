@@ -106,7 +106,7 @@ def test_contour_fill_equals_faces_on_procedural_objects(tmp_path):
     the simulator's own objects (bottles, cups, bowls, ...) at random poses and views
     the two must agree pixel for pixel.
     """
-    from heapgrasp.sim.motion import look_at
+    from heapgrasp.geometry.motion import look_at
     from heapgrasp.sim.objects import generate_procedural, load_mesh
 
     rng = np.random.default_rng(5)

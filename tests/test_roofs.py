@@ -1,4 +1,4 @@
-"""Roof trimming of the silhouette hull (heapgrasp.roofs)."""
+"""Roof trimming of the silhouette hull (heapgrasp.perception.roofs)."""
 
 from __future__ import annotations
 
@@ -7,13 +7,17 @@ import math
 import numpy as np
 import pytest
 from box_scenes import box_scene
+from fake_robot import FrameMasks, MaskedFrame
 from heapgrasp import OccupancyGrid, PinholeCamera
-from heapgrasp.grasping.volumes import GridFrame
-from heapgrasp.perception import SilhouettePerception
-from heapgrasp.roofs import SilhouetteView, column_heights, keep_silhouettes, trim_roofs
-from heapgrasp.sim.camera import CameraSpec
-from heapgrasp.sim.motion import look_at
-from heapgrasp.sim.world import Frame
+from heapgrasp.geometry.camera import CameraSpec
+from heapgrasp.geometry.grid import GridFrame
+from heapgrasp.geometry.motion import look_at
+from heapgrasp.perception.roofs import SilhouetteView, column_heights, keep_silhouettes, trim_roofs
+from heapgrasp.perception.segmenters import IdealSegmenter
+from heapgrasp.perception.silhouette import SilhouettePerception
+
+MASKS = IdealSegmenter(FrameMasks())
+
 
 V = 0.0075  # voxel size of Table I's grid (0.30 m / 40)
 
@@ -99,14 +103,14 @@ def test_bad_input_names_the_value(args: tuple[object, ...], match: str) -> None
 def test_perception_trims_the_grasp_input_only_when_asked() -> None:
     frame = GridFrame((0.0, 0.0, 0.0), 0.18, 24)
     with pytest.raises(ValueError, match="roof_radius"):
-        SilhouettePerception(frame, roof_radius=-1.0)
+        SilhouettePerception(frame, MASKS, roof_radius=-1.0)
     hull, box = box_with_tent()
     # Counts as if every frame had seen every voxel and segmented the hull.
     visible = np.full(hull.shape, 10, dtype=np.uint32)
     segmented = (hull * 10).astype(np.uint32)
     grid = OccupancyGrid.from_counts(frame.origin, frame.size, segmented, visible)
-    plain = SilhouettePerception(frame)
-    trimmed = SilhouettePerception(frame, roof_radius=0.0225)
+    plain = SilhouettePerception(frame, MASKS)
+    trimmed = SilhouettePerception(frame, MASKS, roof_radius=0.0225)
     plain.grid = grid
     trimmed.grid = grid.copy()
     np.testing.assert_array_equal(plain.grasp_input(), hull)
@@ -218,16 +222,13 @@ def test_a_view_with_a_mask_of_the_wrong_size_is_refused() -> None:
 
 def test_perception_keeps_what_the_silhouettes_show() -> None:
     with pytest.raises(ValueError, match="silhouette_views"):
-        SilhouettePerception(FRAME, roof_radius=0.0225, silhouette_views=-2)
+        SilhouettePerception(FRAME, MASKS, roof_radius=0.0225, silhouette_views=-2)
     boxes = [((0.0, 0.0, 0.0225), (0.06, 0.06, 0.045)), ((0.0375, 0.0, 0.06), (0.015, 0.015, 0.12))]
     full, views = _carve(boxes)
     spec = CameraSpec()
-    frames = [
-        Frame(cam2world=v.cam2world, camera=spec, mask=v.mask, labels=v.mask.astype(np.int32))
-        for v in views
-    ]
-    checked = SilhouettePerception(FRAME, roof_radius=0.0225)
-    unchecked = SilhouettePerception(FRAME, roof_radius=0.0225, silhouette_views=0)
+    frames = [MaskedFrame(cam2world=v.cam2world, camera=spec, mask=v.mask) for v in views]
+    checked = SilhouettePerception(FRAME, MASKS, roof_radius=0.0225)
+    unchecked = SilhouettePerception(FRAME, MASKS, roof_radius=0.0225, silhouette_views=0)
     for perception in (checked, unchecked):
         perception.update(frames)
         np.testing.assert_array_equal(perception.grid.high_confidence(0.9), full)
@@ -240,7 +241,7 @@ def test_perception_keeps_what_the_silhouettes_show() -> None:
     post = ((23, 18), (27, 22))
     assert _top(checked.grasp_input(), *post) >= 15
     # a subset of the frames still sees the post; a new phase forgets them all
-    few = SilhouettePerception(FRAME, roof_radius=0.0225, silhouette_views=3)
+    few = SilhouettePerception(FRAME, MASKS, roof_radius=0.0225, silhouette_views=3)
     few.update(frames)
     assert len(few.views) == 8
     assert _top(few.grasp_input(), *post) > _top(trimmed, *post)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import reference as ref
 from conftest import ring_poses
-from heapgrasp.viewplan import target_region
+from heapgrasp.planning.views import target_region
 
 ORIGIN, SIZE = (-0.15, -0.15, 0.0), 0.30
 

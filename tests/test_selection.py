@@ -6,8 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from heapgrasp.grasping.volumes import GraspCandidate
-from heapgrasp.selection import (
+from heapgrasp.planning.selection import (
     detour,
     pose_distance,
     progress_rate,
@@ -15,6 +14,7 @@ from heapgrasp.selection import (
     select_target,
     top_scoring,
 )
+from heapgrasp.planning.volumes import GraspCandidate
 
 
 def pose(position: tuple[float, float, float], yaw: float = 0.0) -> np.ndarray:

@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import box_model
+from heapgrasp.geometry.motion import MotionLimits, ViewSphere, plan_waypoints
+from heapgrasp.robot.grasping import BIN_POSE
 from heapgrasp.sim.arm import (
     ArmConfig,
     JointPathError,
@@ -19,9 +21,7 @@ from heapgrasp.sim.arm import (
     retime_for_arm,
 )
 from heapgrasp.sim.gripper import Grasp, GraspOutcome, execute_grasp
-from heapgrasp.sim.motion import MotionLimits, ViewSphere, plan_waypoints
 from heapgrasp.sim.objects import ObjectLibrary
-from heapgrasp.sim.protocol import BIN_POSE
 from heapgrasp.sim.robot import Robot
 from heapgrasp.sim.world import SimWorld
 

@@ -9,7 +9,7 @@ import pytest
 from conftest import box_model
 from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand, execute_grasp
 from heapgrasp.sim.objects import ObjectLibrary
-from heapgrasp.sim.protocol import touched_labels
+from heapgrasp.sim.truth import touched_labels
 from heapgrasp.sim.world import SimWorld
 
 TOP_DOWN = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # TCP z pointing down
@@ -107,6 +107,8 @@ def test_successes_record_no_contact(world_with_box: tuple[SimWorld, int]) -> No
 
 def test_bad_grasps_are_rejected() -> None:
     with pytest.raises(ValueError, match="width"):
-        Grasp(tcp((0, 0, 0)), width=0.2)
+        Grasp(tcp((0, 0, 0)), width=-0.01)
+    with pytest.raises(ValueError, match="width"):
+        Grasp(tcp((0, 0, 0)), width=float("nan"))
     with pytest.raises(ValueError, match="rigid"):
         Grasp(tcp((0, 0, 0), rotation=2 * np.eye(3)), width=0.05)

@@ -7,16 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from heapgrasp.loop.metrics import Phase, aggregate, shortest_trajectory_ratio, trajectory_length
+from heapgrasp.loop.protocol import PlanResult, StopReason, run_clutter_removal, stop_reason
 from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand
-from heapgrasp.sim.metrics import Phase, aggregate, shortest_trajectory_ratio, trajectory_length
 from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
-from heapgrasp.sim.protocol import (
-    PlanResult,
-    StopReason,
-    run_clutter_removal,
-    stop_reason,
-    top_down_grasp,
-)
+from heapgrasp.sim.robot import SimRobot
+from heapgrasp.sim.truth import SimTruth, top_down_grasp
 from heapgrasp.sim.world import SimWorld
 
 DOWN = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])
@@ -47,6 +43,9 @@ def test_stop_rules() -> None:
     assert stop_reason(3, 2, True) == StopReason.TWO_FAILURES
     assert stop_reason(3, 1, False) == StopReason.NO_CANDIDATE
     assert stop_reason(3, 1, True) is None
+    # without scene truth (a real robot) the count is unknown: never "cleared"
+    assert stop_reason(None, 0, True) is None
+    assert stop_reason(None, 2, True) == StopReason.TWO_FAILURES
 
 
 def run(
@@ -70,7 +69,12 @@ def run(
         assert outcomes is not None
         outcomes.append(outcome.value)
 
-    phases, reason = run_clutter_removal(hand, plan, on_outcome=None if outcomes is None else told)
+    phases, reason = run_clutter_removal(
+        SimRobot(hand),
+        plan,
+        truth=SimTruth(world, hand),
+        on_outcome=None if outcomes is None else told,
+    )
     return phases, reason, world
 
 

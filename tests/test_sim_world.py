@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from heapgrasp.sim.camera import CameraSpec
-from heapgrasp.sim.motion import look_at
+from heapgrasp.geometry.camera import CameraSpec
+from heapgrasp.geometry.motion import look_at
 from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.optics import Category, DepthModel
 from heapgrasp.sim.world import SimWorld
@@ -200,7 +200,7 @@ def test_bad_arguments_are_named(library: ObjectLibrary) -> None:
 def test_follow_captures_at_the_camera_rate_on_the_simulated_clock(
     library: ObjectLibrary,
 ) -> None:
-    from heapgrasp.sim.motion import ViewSphere, circle_waypoints, plan_waypoints
+    from heapgrasp.geometry.motion import ViewSphere, circle_waypoints, plan_waypoints
 
     with SimWorld(library) as world:
         world.reset(layout="packed", n_objects=2, category="opaque", seed=1)
@@ -219,7 +219,8 @@ def test_follow_captures_at_the_camera_rate_on_the_simulated_clock(
         # Frames are those of the path, and see the scene.
         np.testing.assert_allclose(cap.poses[0], path.poses[0], atol=1e-12)
         np.testing.assert_allclose(cap.poses[-1], path.poses[-1], atol=1e-12)
-        assert cap.masks.shape[1:] == (240, 320)
+        assert all(f.mask.shape == (240, 320) for f in cap.frames)
+        np.testing.assert_allclose([f.time for f in cap.frames], cap.times)
         assert all(f.mask.any() for f in cap.frames)
         assert cap.frames[0].depth is None
         with pytest.raises(ValueError, match="seconds"):

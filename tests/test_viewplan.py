@@ -8,9 +8,9 @@ import math
 import numpy as np
 import numpy.typing as npt
 import pytest
-from heapgrasp import MeshScene, OccupancyGrid, score_views
-from heapgrasp.sim.camera import CameraSpec
-from heapgrasp.sim.motion import (
+from heapgrasp import MeshScene, OccupancyGrid
+from heapgrasp.geometry.camera import CameraSpec
+from heapgrasp.geometry.motion import (
     ViewSphere,
     _arc_eyes,
     _look_at_many,
@@ -19,12 +19,10 @@ from heapgrasp.sim.motion import (
     interpolate_sampled,
     look_at,
 )
-from heapgrasp.viewplan import (
+from heapgrasp.planning.views import (
     OracleViewScorer,
     ViewContext,
-    closing_region,
     fixed_waypoints,
-    gripper_region,
     subsample_path,
     sweep_waypoints,
     target_region,
@@ -231,80 +229,6 @@ def test_target_region_is_the_column_over_the_target() -> None:
         target_region(grid, (0.1, 0.1, 0.0), 0.0)
     with pytest.raises(ValueError, match="target_radius"):
         OracleViewScorer(target_radius=-0.1)
-
-
-def test_gripper_region_is_the_box_the_gripper_sweeps_at_the_target() -> None:
-    grid = OccupancyGrid((0.0, 0.0, 0.0), 0.30, 40)
-    # A top-down grasp closing along world x: the TCP's x, y, z axes in world axes are
-    # (0, -1, 0), (1, 0, 0) and (0, 0, -1).
-    pose = np.eye(4)
-    pose[:3, :3] = [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]
-    pose[:3, 3] = (0.15, 0.15, 0.10)
-    box = gripper_region(grid, pose)
-    assert box.shape == (40, 40, 40) and box.dtype == np.bool_
-
-    def at(x: float, y: float, z: float) -> bool:
-        i, j, k = (int(c / 0.0075) for c in (x, y, z))
-        return bool(box[i, j, k])
-
-    assert at(0.151, 0.151, 0.101)  # the TCP
-    assert at(0.151 + 0.06, 0.151, 0.101)  # along the closing axis (world x), 6 cm
-    assert not at(0.151 + 0.08, 0.151, 0.101)  # beyond the widest fingers
-    assert not at(0.151, 0.151 + 0.05, 0.101)  # across the fingers, 5 cm
-    assert at(0.151, 0.151, 0.101 + 0.05)  # behind the TCP (up), toward the palm
-    assert at(0.151, 0.151, 0.101 - 0.025)  # just below the fingertips
-    assert not at(0.151, 0.151, 0.101 - 0.04)  # farther below
-    with pytest.raises(ValueError, match="pose"):
-        gripper_region(grid, np.eye(3))
-    with pytest.raises(ValueError, match="target_region"):
-        OracleViewScorer(target_region="sphere")
-
-
-def test_closing_region_is_what_the_finger_tips_close_on() -> None:
-    grid = OccupancyGrid((0.0, 0.0, 0.0), 0.30, 40)
-    pose = np.eye(4)
-    pose[:3, :3] = [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]
-    pose[:3, 3] = (0.15, 0.15, 0.10)
-    tips = closing_region(grid, pose)
-    assert tips.dtype == np.bool_ and (tips <= gripper_region(grid, pose)).all()
-
-    def at(x: float, y: float, z: float) -> bool:
-        i, j, k = (int(c / 0.0075) for c in (x, y, z))
-        return bool(tips[i, j, k])
-
-    assert at(0.151, 0.151, 0.101)  # the TCP
-    assert at(0.151 + 0.035, 0.151, 0.101)  # along the closing axis, inside the opening
-    assert not at(0.151 + 0.05, 0.151, 0.101)  # beyond the widest opening
-    assert not at(0.151, 0.151 + 0.02, 0.101)  # beside the finger's width
-    assert at(0.151, 0.151, 0.101 + 0.015)  # up the finger tips
-    assert not at(0.151, 0.151, 0.101 + 0.03)  # above them, toward the palm
-    assert not at(0.151, 0.151, 0.101 - 0.015)  # below the fingertips
-    with pytest.raises(ValueError, match="pose"):
-        closing_region(grid, np.full((4, 4), np.nan))
-    assert OracleViewScorer(target_region="fingers").target_region == "fingers"
-
-
-def test_the_gripper_oracle_counts_eq14_on_the_gripper_box() -> None:
-    scene = MeshScene()
-    v, f = box_mesh((0.02, 0.02, 0.03))
-    obj = np.eye(4)
-    obj[:3, 3] = (0.15, 0.15, 0.03)
-    scene.add_mesh(v, f, obj)
-    sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), 0.30)
-    camera = CameraSpec.continuous()
-    start = sphere.pose(0.0, 0.0)
-    grid = OccupancyGrid((0.0, 0.0, 0.0), 0.30, 40)
-    grid.integrate(scene.render_mask(camera.core(), start), camera.core(), start)
-    cands = np.stack([sphere.pose(0.0, math.pi / 5), sphere.pose(math.pi / 2, math.pi / 5)])
-    target = np.eye(4)
-    target[:3, :3] = [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]
-    target[:3, 3] = (0.15, 0.15, 0.05)
-    ctx = ViewContext(grid, start, cands[:, None], sphere, camera, 0.9, scene, target)
-    oracle = OracleViewScorer(frames_per_candidate=4, target_radius=0.08, target_region="gripper")
-    np.testing.assert_array_equal(oracle.region(ctx), gripper_region(grid, target))
-    paths = oracle.trajectories(ctx)
-    want = score_views(grid, scene, camera.core(), paths, 0.9, region=gripper_region(grid, target))
-    np.testing.assert_array_equal(oracle.scores(ctx)[:, 0], want)
 
 
 def test_target_column_oracle_favours_views_of_the_target() -> None:

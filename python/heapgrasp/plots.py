@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from heapgrasp.config import RunConfig, object_library
+from heapgrasp.loop.config import RunConfig
 
 __all__ = ["figure_grids", "figure_paths"]
 
@@ -66,7 +66,7 @@ def figure_paths(
 def figure_grids(base: RunConfig, methods: Sequence[str], path: Path, *, scene: int = 0) -> None:
     """The measured grid after the first phase's views of ``scene`` per method (Fig. 4),
     re-running that phase in-process."""
-    from heapgrasp.pipeline import build_pipeline
+    from heapgrasp.sim.build import object_library, sim_pipeline
     from heapgrasp.sim.optics import DepthModel
     from heapgrasp.sim.world import SimWorld, WorldConfig
 
@@ -91,7 +91,7 @@ def figure_grids(base: RunConfig, methods: Sequence[str], path: Path, *, scene: 
                 seed=seed,
                 split=config.split,  # type: ignore[arg-type]
             )
-            pipeline = build_pipeline(config, world, seed=seed)
+            pipeline = sim_pipeline(config, world, seed=seed)
             planned = pipeline.plan()
             grid = pipeline.perception.grasp_input()
             cands = pipeline.grasp_candidates()

@@ -4,7 +4,7 @@
 ``config.seed + i``, so every method sees the same scenes) and writes, in the output
 directory:
 
-* ``config.json`` — the full :class:`~heapgrasp.config.RunConfig`;
+* ``config.json`` — the full :class:`~heapgrasp.loop.config.RunConfig`;
 * ``scenes.jsonl`` — one JSON record per finished scene, appended and flushed as soon as
   the scene ends, so an interrupted run loses nothing (``resume=True`` skips the
   scenes already there);
@@ -30,9 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from heapgrasp.config import ConfigError, RunConfig, object_library
-from heapgrasp.sim.metrics import Phase, aggregate
-from heapgrasp.stats import success_interval
+from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.metrics import Phase, aggregate
+from heapgrasp.loop.stats import success_interval
 
 __all__ = [
     "RESULTS_FILE",
@@ -40,6 +40,7 @@ __all__ = [
     "RunExistsError",
     "format_summary",
     "load_records",
+    "preflight",
     "run",
     "run_scene",
     "summarize",
@@ -66,18 +67,37 @@ def _method_label(config: RunConfig) -> str:
     return f"{config.method} ({grasps})"
 
 
+def preflight(config: RunConfig, *, viz: bool = False) -> None:
+    """Builds, once and before any scene, what a run needs beyond the simulator — the
+    grasp planner, the view scorer and the critic, loading their weights — so that a
+    missing optional dependency (PyTorch for the networks, rerun-sdk for ``viz``) or a bad
+    weights file is one clear error, not a failed record per scene."""
+    from heapgrasp.loop.phase import make_critic, make_grasp_planner, make_view_scorer
+
+    make_grasp_planner(config)
+    make_view_scorer(config)
+    make_critic(config)
+    if viz:
+        from heapgrasp.viz.recorder import import_rerun
+
+        import_rerun()
+
+
 def run_scene(
     config: RunConfig,
     index: int,
     *,
     category: str | None = None,
     gui: bool = False,
+    record: Path | None = None,
 ) -> dict[str, Any]:
     """Runs scene ``index`` (seed ``config.seed + index``) to the end of the clutter-removal
-    protocol and returns its record (phases with metrics, stop reason, timings)."""
-    from heapgrasp.pipeline import build_pipeline
+    protocol and returns its record (phases with metrics, stop reason, timings). With
+    ``record``, every phase is recorded there as a ``.rrd`` file (:mod:`heapgrasp.viz`),
+    with RGB images rendered for it (the outcomes are the same)."""
+    from heapgrasp.loop.protocol import run_clutter_removal
+    from heapgrasp.sim.build import object_library, sim_pipeline
     from heapgrasp.sim.optics import DepthModel
-    from heapgrasp.sim.protocol import run_clutter_removal
     from heapgrasp.sim.world import SimWorld, WorldConfig
 
     t0 = time.perf_counter()
@@ -100,13 +120,27 @@ def run_scene(
         )
         scene = world.to_dict()
         total = len(world.objects)
-        pipeline = build_pipeline(config, world, seed=seed)
-        phases, reason = run_clutter_removal(
-            pipeline.robot,
-            pipeline.plan,
-            max_attempts=config.max_attempts,
-            on_outcome=pipeline.record_outcome,
+        recorder = None
+        if record is not None:
+            from heapgrasp.geometry.grid import GridFrame
+            from heapgrasp.viz.recorder import RerunRecorder
+
+            grid = GridFrame((0.0, 0.0, 0.0), config.cube_size, config.resolution)
+            recorder = RerunRecorder(record, grid, config.lam, name=f"{config.method}-{seed}")
+        pipeline = sim_pipeline(
+            config, world, seed=seed, observer=recorder, rgb=recorder is not None
         )
+        try:
+            phases, reason = run_clutter_removal(
+                pipeline.robot,
+                pipeline.plan,
+                truth=pipeline.truth,
+                max_attempts=config.max_attempts,
+                on_outcome=pipeline.record_outcome,
+            )
+        finally:
+            if recorder is not None:
+                recorder.close()
     return {
         "scene": index,
         "seed": seed,
@@ -119,9 +153,11 @@ def run_scene(
     }
 
 
-def _safe_scene(config: RunConfig, index: int, category: str | None) -> dict[str, Any]:
+def _safe_scene(
+    config: RunConfig, index: int, category: str | None, record: Path | None = None
+) -> dict[str, Any]:
     try:
-        return run_scene(config, index, category=category)
+        return run_scene(config, index, category=category, record=record)
     except Exception as exc:  # recorded, the run goes on
         return {
             "scene": index,
@@ -182,7 +218,7 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         "view_planner": config.view_planner if config.method == "heapgrasp" else None,
         "grasp_planner": config.grasp_planner,
         **metrics,
-        # 95 % Wilson interval of the success rate, in percent (heapgrasp.stats).
+        # 95 % Wilson interval of the success rate, in percent (heapgrasp.loop.stats).
         "grasp_success_ci95": [100 * x for x in success_interval(k, n)] if n else None,
         "per_scene_group": per_group,
         "scenes_completed": len(done),
@@ -254,6 +290,7 @@ def run(
     categories: Sequence[str] | None = None,
     progress: bool = True,
     gui: bool = False,
+    viz: bool = False,
     on_scene: Callable[[dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
     """Runs every scene of ``config`` and returns :func:`summarize` of all of them.
@@ -268,8 +305,15 @@ def run(
         Scenes run in parallel in a process pool when > 1.
     categories
         Scene group of each scene (default ``config.category`` for all).
+    viz
+        Record every scene's phases to ``out/viz/scene-NNN.rrd`` (:mod:`heapgrasp.viz`).
     on_scene
         Called with each finished scene record.
+
+    Raises
+    ------
+    ConfigError, ImportError
+        Before any scene: what the run needs cannot be built (:func:`preflight`).
     """
     from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
@@ -279,6 +323,9 @@ def run(
         raise ValueError(f"categories: need one per scene ({config.scenes}), got {len(categories)}")
     if gui and workers > 1:
         raise ValueError("gui: needs workers = 1")
+    if viz and out is None:
+        raise ValueError("viz: needs an output directory")
+    preflight(config, viz=viz)
     records: list[dict[str, Any]] = []
     if out is not None:
         out = Path(out)
@@ -292,6 +339,9 @@ def run(
 
     def category_of(i: int) -> str | None:
         return None if categories is None else categories[i]
+
+    def record_of(i: int) -> Path | None:
+        return None if not viz or out is None else out / "viz" / f"scene-{i:03d}.rrd"
 
     bar = tqdm(
         total=config.scenes,
@@ -321,14 +371,17 @@ def run(
         if workers == 1:
             for i in pending:
                 if gui:
-                    finish(run_scene(config, i, category=category_of(i), gui=True))
+                    finish(
+                        run_scene(config, i, category=category_of(i), gui=True, record=record_of(i))
+                    )
                 else:
-                    finish(_safe_scene(config, i, category_of(i)))
+                    finish(_safe_scene(config, i, category_of(i), record_of(i)))
         else:
             ctx = get_context("spawn")
             with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker) as pool:
                 futures: list[Future[dict[str, Any]]] = [
-                    pool.submit(_safe_scene, config, i, category_of(i)) for i in pending
+                    pool.submit(_safe_scene, config, i, category_of(i), record_of(i))
+                    for i in pending
                 ]
                 from concurrent.futures import as_completed
 

@@ -5,7 +5,7 @@ or one method's folder of ``heapgrasp bench sim``), e.g. a method before and aft
 change, or two methods. Scenes are matched by their seed. Prints, for each run, the
 success rate with its 95 % Wilson interval, the objects removed and the mean trajectory;
 then A's success rate minus B's with a paired bootstrap interval over the common scenes
-(:mod:`heapgrasp.stats`), and A's mean trajectory as a share of B's. ``--json FILE``
+(:mod:`heapgrasp.loop.stats`), and A's mean trajectory as a share of B's. ``--json FILE``
 also writes the numbers.
 
 ``--pool A2 B2`` (repeatable) adds another pair of runs on other scenes, e.g. the same
@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from heapgrasp.bench.breakdown import breakdown, format_breakdown
-from heapgrasp.stats import (
+from heapgrasp.loop.stats import (
     format_interval,
     paired_success_difference,
     scene_counts,

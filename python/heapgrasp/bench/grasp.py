@@ -3,8 +3,8 @@
 For ``--scenes`` seeded scenes (scene ``i`` has seed ``seed + i``, built as
 :func:`heapgrasp.run.run_scene` builds it: the procedural object set, test split) the
 benchmark carves a high-confidence occupancy grid ``Ŝ≥λ`` from ideal masks, plans
-with :class:`~heapgrasp.grasping.antipodal.AntipodalPlanner` and
-:func:`~heapgrasp.grasping.volumes.select_candidates`, and executes the top-scoring
+with :class:`~heapgrasp.planning.antipodal.AntipodalPlanner` and
+:func:`~heapgrasp.planning.volumes.select_candidates`, and executes the top-scoring
 candidate with the free-flying Panda hand (:func:`heapgrasp.sim.gripper.execute_grasp`):
 one attempt per scene and grid. Grids (``--grids``):
 
@@ -13,7 +13,7 @@ one attempt per scene and grid. Grids (``--grids``):
     from the scene on its −y side), then
     once around the circle of L = 3 waypoints at θ = π/5 on the r = 0.33 m view sphere
     of the 0.30 m cube, capturing continuously along the ruckig-timed path
-    (:meth:`heapgrasp.pipeline.Pipeline.plan` of a ``no-vp`` run).
+    (:meth:`heapgrasp.loop.phase.Pipeline.plan` of a ``no-vp`` run).
 ``dense``
     An upper bound for Shape from Silhouette: 129 still views, one from the top and
     8 rings of 16 views at polar angles up to 75° on a sphere of radius 0.5 m about the
@@ -44,11 +44,11 @@ import numpy as np
 import numpy.typing as npt
 
 from heapgrasp.bench.argtypes import comma_choices, float_in, int_at_least
-from heapgrasp.config import CATEGORIES, LAYOUTS, ConfigError, RunConfig
+from heapgrasp.loop.config import CATEGORIES, LAYOUTS, ConfigError, RunConfig
 
 if TYPE_CHECKING:
-    from heapgrasp.grasping.antipodal import AntipodalPlanner
-    from heapgrasp.sim.motion import ViewSphere
+    from heapgrasp.geometry.motion import ViewSphere
+    from heapgrasp.planning.antipodal import AntipodalPlanner
     from heapgrasp.sim.world import SimWorld
 
 __all__ = [
@@ -75,7 +75,7 @@ GRIDS: tuple[str, ...] = ("circle", "dense")
 
 FAR_FROM_OBJECTS_M = 0.03
 """An executed grasp whose TCP is farther than this (m) from the surface of every object
-aimed at nothing (the radius :meth:`heapgrasp.pipeline.Pipeline._object_near` uses to
+aimed at nothing (the radius :meth:`heapgrasp.loop.phase.Pipeline._object_near` uses to
 name a grasp's target)."""
 
 DENSE_RADIUS = 0.5
@@ -114,12 +114,12 @@ class GraspBenchConfig:
         Grid kinds among :data:`GRIDS`.
     epsilon, sigma : float
         Threshold ε and Gaussian σ (voxels) of :func:`select_candidates`; the defaults
-        are :class:`~heapgrasp.grasping.antipodal.AntipodalPlanner`'s own.
+        are :class:`~heapgrasp.planning.antipodal.AntipodalPlanner`'s own.
     nms_window : int
         Non-maximum-suppression window of :func:`select_candidates`.
     roof_radius : float
         Disc radius (m) with which both grids' roofs are trimmed before planning
-        (:func:`heapgrasp.roofs.trim_roofs`, as the pipeline does); 0 plans on ``Ŝ≥λ``.
+        (:func:`heapgrasp.perception.roofs.trim_roofs`, as the pipeline does); 0 plans on ``Ŝ≥λ``.
     """
 
     scenes: int = 30
@@ -207,7 +207,7 @@ class _SurfaceDistance:
 
     Exact point-to-triangle distances on the objects' visual meshes (the ground truth the
     masks are rendered from). The nearest mesh *vertex*, which
-    :meth:`heapgrasp.pipeline.Pipeline._object_near` uses, over-estimates the distance
+    :meth:`heapgrasp.loop.phase.Pipeline._object_near` uses, over-estimates the distance
     near the large faces of coarse meshes (a box has eight vertices).
     """
 
@@ -268,13 +268,17 @@ def _evaluate(
     surface: _SurfaceDistance,
 ) -> dict[str, Any]:
     """Carves grid ``kind`` of scene ``scene``, plans and executes its top candidate."""
-    from heapgrasp.grasping.volumes import GridFrame, select_candidates
-    from heapgrasp.perception import SilhouettePerception
-    from heapgrasp.pipeline import build_pipeline
-    from heapgrasp.sim.camera import CameraSpec
+    from heapgrasp.geometry.camera import CameraSpec
+    from heapgrasp.geometry.grid import GridFrame
+    from heapgrasp.geometry.motion import ViewSphere
+    from heapgrasp.loop.phase import MEMORY_TOLERANCE, SILHOUETTE_VIEWS
+    from heapgrasp.perception.segmenters import IdealSegmenter
+    from heapgrasp.perception.silhouette import SilhouettePerception
+    from heapgrasp.planning.volumes import select_candidates
+    from heapgrasp.sim.build import make_body, sim_pipeline
     from heapgrasp.sim.gripper import Grasp, PandaHand, execute_grasp
-    from heapgrasp.sim.motion import ViewSphere
     from heapgrasp.sim.robot import Robot
+    from heapgrasp.sim.truth import SimTruth
 
     seed = config.seed + scene
     run_config = config.run_config()
@@ -284,24 +288,24 @@ def _evaluate(
     frame = GridFrame(origin, run_config.cube_size, run_config.resolution)
     hand: Robot
     if kind == "circle":
-        pipeline = build_pipeline(run_config, world, grasp_planner=planner, seed=seed)
+        hand = make_body(run_config, world)
+        pipeline = sim_pipeline(run_config, world, grasp_planner=planner, seed=seed, body=hand)
         # The no-vp phase up to the grasp; it also plans a grasp, which is discarded:
         # the planner is timed and run below, as for the dense grid.
         pipeline.plan()
         if not isinstance(pipeline.perception, SilhouettePerception):
             raise TypeError("the no-vp pipeline must carve silhouettes")
         perception = pipeline.perception
-        hand = pipeline.robot
     elif kind == "dense":
         perception = SilhouettePerception(
             frame,
+            IdealSegmenter(SimTruth(world)),
             lam=run_config.lam,
             roof_radius=run_config.roof_radius,
-            silhouette_views=run_config.silhouette_views,
+            silhouette_views=SILHOUETTE_VIEWS,
+            memory_tolerance=MEMORY_TOLERANCE,
         )
-        camera = (
-            CameraSpec.continuous() if run_config.camera == "continuous" else CameraSpec.still()
-        )
+        camera = CameraSpec.continuous()
         sphere = ViewSphere.for_cube(origin, run_config.cube_size, radius=DENSE_RADIUS)
         perception.update([world.capture(p, camera, depth=False) for p in dense_waypoints(sphere)])
         hand = PandaHand(world)
@@ -486,8 +490,8 @@ def run_bench(
     """
     from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
-    from heapgrasp.config import object_library
-    from heapgrasp.grasping.antipodal import AntipodalPlanner
+    from heapgrasp.planning.antipodal import AntipodalPlanner
+    from heapgrasp.sim.build import object_library
     from heapgrasp.sim.gripper import GraspOutcome
     from heapgrasp.sim.world import SimWorld, WorldConfig
 
@@ -543,7 +547,7 @@ def run(args: argparse.Namespace) -> int:
         0, or 1 when a scene raised.
     """
     from heapgrasp.bench.carve import machine_info
-    from heapgrasp.grasping.antipodal import AntipodalPlanner
+    from heapgrasp.planning.antipodal import AntipodalPlanner
 
     defaults = AntipodalPlanner()
     config = GraspBenchConfig(

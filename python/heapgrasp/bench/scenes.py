@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.sim.motion import look_at
+from heapgrasp.geometry.motion import look_at
 
 __all__ = [
     "CUBE",

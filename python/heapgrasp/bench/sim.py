@@ -8,7 +8,7 @@ same seeded scenes (scene ``i`` has seed ``seed + i``). Each method's run is a n
 Writes ``OUT/table.md`` (a Table II-style overall table beside the paper's numbers and
 a Table III-style table per scene group; every success rate with its 95 % interval, and
 each method's difference from no-vp with a paired scene-bootstrap interval,
-:mod:`heapgrasp.stats`), ``OUT/summary.json``, ``OUT/fig5_paths.png``
+:mod:`heapgrasp.loop.stats`), ``OUT/summary.json``, ``OUT/fig5_paths.png``
 (camera paths in the x–y plane, as Fig. 5) and ``OUT/fig4_grids.png`` (the measured
 high-confidence grid of one phase with its grasp candidates, as Fig. 4).
 """
@@ -24,8 +24,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from heapgrasp.config import METHODS, ConfigError, ConfigFile, RunConfig, presets
-from heapgrasp.stats import format_interval, methods_differences, success_interval
+from heapgrasp.loop.config import METHODS, ConfigError, ConfigFile, RunConfig, presets
+from heapgrasp.loop.stats import format_interval, methods_differences, success_interval
 
 __all__ = [
     "PAPER_TABLE_II",
@@ -108,9 +108,9 @@ def _configs(
     args: argparse.Namespace, methods: Sequence[str]
 ) -> tuple[RunConfig, dict[str, RunConfig]]:
     """The base config (the tables' header) and each method's
-    (:func:`heapgrasp.run_cli.compose`: ``--config``, its ``[methods.NAME]`` table, the
+    (:func:`heapgrasp.loop.config.compose`: ``--config``, its ``[methods.NAME]`` table, the
     flags, ``--set``)."""
-    from heapgrasp.run_cli import compose, parse_sets
+    from heapgrasp.loop.config import compose, parse_sets
 
     loaded = ConfigFile.load(args.config) if args.config is not None else None
     flags = {"scenes": args.scenes, "objects": args.objects, "seed": args.seed}
@@ -174,7 +174,7 @@ def add_uncertainty(summaries: dict[str, dict[str, Any]], reference: str = "no-v
     """Adds to every method's summary ``grasp_success_ci95`` (Wilson, percent) and, when
     ``reference`` ran and the summaries hold their ``phases``, ``success_difference``: the
     paired scene-bootstrap difference from ``reference`` in points
-    (:mod:`heapgrasp.stats`)."""
+    (:mod:`heapgrasp.loop.stats`)."""
     for s in summaries.values():
         n, k = s.get("grasps_attempted", 0), s.get("grasps_succeeded", 0)
         s["grasp_success_ci95"] = [100 * x for x in success_interval(k, n)] if n else None
@@ -263,7 +263,7 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
         lines += [
             "",
             "Success rate minus no-vp's, in points, with a 95 % interval from resampling the "
-            "scenes both ran (paired bootstrap, `heapgrasp.stats`):",
+            "scenes both ran (paired bootstrap, `heapgrasp.loop.stats`):",
             "",
         ]
         for method, d in diffs.items():

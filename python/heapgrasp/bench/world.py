@@ -51,11 +51,13 @@ def add_parser(
 
 def run(args: argparse.Namespace) -> int:
     """Runs the benchmark and prints a Markdown table; returns the exit status."""
-    from heapgrasp.sim.camera import CameraSpec
+    from heapgrasp.geometry.camera import CameraSpec
+    from heapgrasp.geometry.motion import ViewSphere, circle_waypoints
+    from heapgrasp.loop.protocol import PlanResult, run_clutter_removal
     from heapgrasp.sim.gripper import PandaHand
-    from heapgrasp.sim.motion import ViewSphere, circle_waypoints
     from heapgrasp.sim.objects import ObjectLibrary
-    from heapgrasp.sim.protocol import PlanResult, run_clutter_removal, top_down_grasp
+    from heapgrasp.sim.robot import SimRobot
+    from heapgrasp.sim.truth import SimTruth, top_down_grasp
     from heapgrasp.sim.world import SimWorld
 
     if args.frames < 1 or args.phases < 0:
@@ -101,7 +103,9 @@ def run(args: argparse.Namespace) -> int:
 
         t0 = time.perf_counter()
         sim0 = hand.time
-        phases, reason = run_clutter_removal(hand, plan, max_attempts=args.phases)
+        phases, reason = run_clutter_removal(
+            SimRobot(hand), plan, truth=SimTruth(world, hand), max_attempts=args.phases
+        )
         wall = time.perf_counter() - t0
         done = [p for p in phases if p.attempted]
         results["phases"] = len(done)

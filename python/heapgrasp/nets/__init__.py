@@ -9,8 +9,8 @@
 * :func:`resolve_device` — ``cpu``, ``cuda``, ``cuda:N`` or ``auto``, checked against the
   devices PyTorch sees.
 
-The planners that use them, :class:`heapgrasp.grasping.network.NetworkGraspPlanner` and
-:class:`heapgrasp.viewplan_network.NetworkViewScorer`, import this package lazily, so the
+The planners that use them, :class:`heapgrasp.planning.grasp_network.NetworkGraspPlanner` and
+:class:`heapgrasp.planning.view_network.NetworkViewScorer`, import this package lazily, so the
 rest of ``heapgrasp`` never needs PyTorch.
 """
 

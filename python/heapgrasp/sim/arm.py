@@ -46,7 +46,7 @@ axis near the view sphere's pole, which the wrist's range cannot always follow;
 ``ArmConfig(camera_roll="free")`` lets the arm choose that roll (the images see the same
 scene, rotated, and frames carry the pose actually reached).
 
-Timing: :func:`retime_for_arm` slows a Cartesian :class:`~heapgrasp.sim.motion.TimedPath`
+Timing: :func:`retime_for_arm` slows a Cartesian :class:`~heapgrasp.geometry.motion.TimedPath`
 until the Panda's joint velocity, acceleration and jerk limits (datasheet values in
 :class:`ArmConfig`) hold along it, as measured by :func:`joint_profile` (IK at the path's
 samples, a cubic spline in arc length, and the path's timing); a path that needs a
@@ -68,9 +68,11 @@ import pybullet as pb
 import pybullet_data
 
 from heapgrasp import HeapgraspError
+from heapgrasp.geometry.motion import MotionLimits, TimedPath
+from heapgrasp.robot.grasping import HandPart, translate
+from heapgrasp.robot.interfaces import UnreachableError as RobotUnreachableError
 from heapgrasp.sim.fingers import MAX_OPENING, Fingers
-from heapgrasp.sim.gripper import TCP_OFFSET, HandPart, translate
-from heapgrasp.sim.motion import MotionLimits, TimedPath
+from heapgrasp.sim.gripper import TCP_OFFSET
 from heapgrasp.sim.world import SimWorld, _pose, _split_pose
 
 __all__ = [
@@ -330,7 +332,7 @@ class ArmConfig:
         return m
 
 
-class UnreachableError(HeapgraspError):
+class UnreachableError(RobotUnreachableError):
     """A pose the arm cannot reach within the IK tolerance (a ``ValueError``).
 
     Attributes
@@ -1158,7 +1160,7 @@ def joint_profile(path: TimedPath, arm: PandaArm, *, rate: float = 100.0) -> Joi
     Parameters
     ----------
     path
-        Timed ``cam2world`` path (e.g. from :func:`heapgrasp.sim.motion.plan_waypoints`).
+        Timed ``cam2world`` path (e.g. from :func:`heapgrasp.geometry.motion.plan_waypoints`).
     arm
         The arm carrying the camera.
     rate
@@ -1213,7 +1215,7 @@ def retime_for_arm(
     :attr:`ArmConfig.max_velocity`, :attr:`~ArmConfig.max_acceleration` and
     :attr:`~ArmConfig.max_jerk`. If a ratio ``r`` exceeds 1, the path is slowed
     uniformly by ``k = max(r_v, sqrt(r_a), cbrt(r_j)) / margin``: its Cartesian
-    :class:`~heapgrasp.sim.motion.MotionLimits` become ``(v / k, a / k^2, j / k^3)``, which
+    :class:`~heapgrasp.geometry.motion.MotionLimits` become ``(v / k, a / k^2, j / k^3)``, which
     stretches ruckig's time-optimal profile by ``k`` and so divides every joint velocity,
     acceleration and jerk by ``k``, ``k^2``, ``k^3``; this repeats (finite differences are
     approximate) up to ``max_iterations`` times. Only the timing changes, not the poses;

@@ -14,13 +14,15 @@ from typing import TYPE_CHECKING
 
 import pybullet as pb
 
+from heapgrasp.geometry.gripper import PANDA_HAND
+
 if TYPE_CHECKING:
     from heapgrasp.sim.world import SimWorld
 
 __all__ = ["MAX_OPENING", "Fingers"]
 
-#: Maximum opening of the Panda hand (m).
-MAX_OPENING = 0.08
+#: Maximum opening of the Panda hand (m): :data:`heapgrasp.geometry.gripper.PANDA_HAND`.
+MAX_OPENING = PANDA_HAND.max_opening
 
 
 class Fingers:

@@ -15,17 +15,24 @@ along z (abort on contact), close, lift 10 cm, shake, and check the object is he
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass
-from enum import StrEnum
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 import pybullet as pb
 import pybullet_data
 
+from heapgrasp.robot.grasping import (
+    CollisionStage,
+    Grasp,
+    GraspOutcome,
+    GraspResult,
+    HandPart,
+    translate,
+)
+from heapgrasp.robot.grasping import execute_grasp as robot_execute_grasp
 from heapgrasp.sim.fingers import MAX_OPENING, Fingers
 from heapgrasp.sim.objects import default_cache_dir
 from heapgrasp.sim.robot import Robot
@@ -97,75 +104,6 @@ def hand_urdf(cache_dir: Path | None = None) -> Path:
     if not path.exists() or path.read_text() != text:
         path.write_text(text)
     return path
-
-
-@dataclass(frozen=True)
-class Grasp:
-    """A grasp: TCP pose in the world frame (z = approach direction) and opening width."""
-
-    pose: FloatArray
-    width: float
-
-    def __post_init__(self) -> None:
-        pose = np.asarray(self.pose, dtype=np.float64)
-        if pose.shape != (4, 4) or not np.isfinite(pose).all():
-            raise ValueError(f"Grasp.pose must be a finite (4, 4) matrix, got shape {pose.shape}")
-        r = pose[:3, :3]
-        if np.abs(r.T @ r - np.eye(3)).max() > 1e-6 or np.linalg.det(r) < 0:
-            raise ValueError("Grasp.pose must be a rigid transform")
-        if not 0.0 <= self.width <= MAX_OPENING + 1e-9:
-            raise ValueError(f"Grasp.width must be in [0, {MAX_OPENING}] m, got {self.width}")
-        object.__setattr__(self, "pose", pose)
-
-
-class GraspOutcome(StrEnum):
-    """How a grasp attempt ended."""
-
-    SUCCESS = "success"
-    COLLISION = "collision"
-    """The hand touched something at the pre-grasp pose or while approaching."""
-    EMPTY = "empty"
-    """The fingers closed on nothing, or dropped the object while lifting or shaking."""
-    UNREACHABLE = "unreachable"
-    """The arm cannot reach the pre-grasp or grasp pose (arm mode only)."""
-
-
-CollisionStage = Literal["pregrasp", "approach"]
-"""Where a grasp attempt touched something (:attr:`GraspResult.stage`)."""
-
-HandPart = Literal["palm", "finger", "arm"]
-"""Which part of the robot touched something (:attr:`GraspResult.parts`): the hand's
-body (``"palm"``), a finger, or (arm mode) a link of the arm above the hand."""
-
-
-@dataclass(frozen=True)
-class GraspResult:
-    """Outcome of :func:`execute_grasp`."""
-
-    outcome: GraspOutcome
-    object_id: int | None
-    """World id of the object held after lifting, if any."""
-    duration: float
-    """Simulated time of the whole attempt (s)."""
-    touched: frozenset[int] = frozenset()
-    """For a collision: the PyBullet bodies the hand touched when it stopped."""
-    stage: CollisionStage | None = None
-    """For a collision: ``"pregrasp"`` (touching at the pre-grasp pose) or
-    ``"approach"`` (on the way from there to the grasp pose)."""
-    parts: frozenset[HandPart] = frozenset()
-    """For a collision: the parts of the robot that touched (:meth:`PandaHand.touching_parts`)."""
-
-    @property
-    def success(self) -> bool:
-        """Whether an object was held after lifting and shaking."""
-        return self.outcome == GraspOutcome.SUCCESS
-
-
-def translate(x: float, y: float, z: float) -> FloatArray:
-    """A pure translation as a (4, 4) matrix."""
-    m = np.eye(4)
-    m[:3, 3] = (x, y, z)
-    return m
 
 
 class PandaHand(Fingers):
@@ -295,45 +233,18 @@ def execute_grasp(
     lift_height: float = 0.10,
     shake: bool = True,
 ) -> GraspResult:
-    """Runs one grasp attempt (VGN's protocol) and returns its outcome.
+    """Runs one grasp attempt with a simulated hand or arm
+    (:func:`heapgrasp.robot.grasping.execute_grasp`, VGN's protocol) and names the object
+    held after lifting (:attr:`GraspResult.object_id`)."""
+    from heapgrasp.sim.robot import SimRobot
 
-    The hand appears at the pre-grasp pose (``pregrasp_distance`` back along the
-    approach axis), opened to the grasp width plus 1 cm (capped at 8 cm); touching
-    anything there, or while approaching, is a collision. It then closes, lifts by
-    ``lift_height`` along world z, optionally shakes (±20° about the approach axis),
-    and succeeds if both fingers still touch one object and are not shut.
-    """
-    from heapgrasp import HeapgraspError
-
-    t0 = hand.time
-    pre = grasp.pose @ translate(0.0, 0.0, -pregrasp_distance)
-    try:
-        hand.reset(pre, min(MAX_OPENING, grasp.width + 0.01))
-    except HeapgraspError:  # the arm's UnreachableError: an attempt that fails
-        hand.park()
-        return GraspResult(GraspOutcome.UNREACHABLE, None, hand.time - t0)
-    hand.step(2)
-    if touched := hand.contacts():
-        parts = frozenset(hand.touching_parts())
-        hand.park()
-        return GraspResult(
-            GraspOutcome.COLLISION, None, hand.time - t0, frozenset(touched), "pregrasp", parts
-        )
-    if not hand.move_linear(grasp.pose, abort_on_contact=True):
-        touched = hand.contacts()
-        parts = frozenset(hand.touching_parts())
-        hand.park()
-        return GraspResult(
-            GraspOutcome.COLLISION, None, hand.time - t0, frozenset(touched), "approach", parts
-        )
-    hand.close()
-    lift = translate(0.0, 0.0, lift_height) @ grasp.pose
-    hand.move_linear(lift, speed=0.2)
-    if shake and hand.held_object() is not None:
-        for angle in (0.35, -0.35, 0.0):
-            c, s = math.cos(angle), math.sin(angle)
-            turn = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-            hand.move_linear(lift @ turn, speed=0.5)
-    held = hand.held_object()
-    outcome = GraspOutcome.SUCCESS if held is not None else GraspOutcome.EMPTY
-    return GraspResult(outcome, held, hand.time - t0)
+    result = robot_execute_grasp(
+        SimRobot(hand),
+        grasp,
+        pregrasp_distance=pregrasp_distance,
+        lift_height=lift_height,
+        shake=shake,
+    )
+    if result.outcome in (GraspOutcome.SUCCESS, GraspOutcome.EMPTY):
+        return dataclasses.replace(result, object_id=hand.held_object())
+    return result

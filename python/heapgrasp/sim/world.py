@@ -30,15 +30,16 @@ import numpy.typing as npt
 import pybullet as pb
 
 from heapgrasp import MeshScene
-from heapgrasp.sim.camera import CameraSpec
+from heapgrasp.geometry.camera import CameraSpec
+from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.sim.objects import ObjectLibrary, ObjectModel, load_mesh
 from heapgrasp.sim.optics import Category, DepthModel
 
 if TYPE_CHECKING:
-    from heapgrasp.sim.motion import TimedPath
+    from heapgrasp.geometry.motion import TimedPath
     from heapgrasp.sim.robot import CameraMount
 
-__all__ = ["CATEGORY_GROUPS", "Capture", "Frame", "SimObject", "SimWorld", "WorldConfig"]
+__all__ = ["CATEGORY_GROUPS", "SimFrame", "SimObject", "SimWorld", "WorldConfig"]
 
 Layout = Literal["pile", "packed"]
 #: Scene groups of HEAPGrasp §VI-C.
@@ -96,49 +97,19 @@ class SimObject:
     category: Category
 
 
-@dataclass
-class Frame:
-    """One captured frame. Images are ``(H, W)`` indexed ``[v, u]``."""
+@dataclass(kw_only=True)
+class SimFrame(Frame):
+    """A simulated frame: a :class:`~heapgrasp.perception.frames.Frame` plus the ground
+    truth that only the simulator has (read by the loop only through
+    :class:`heapgrasp.sim.truth.SimTruth`)."""
 
-    cam2world: npt.NDArray[np.float64]
-    camera: CameraSpec
     mask: npt.NDArray[np.bool_]
     """Ideal segmentation: True where the pixel-centre ray hits an object first."""
     labels: npt.NDArray[np.int32]
     """World id of the object seen at each pixel, 0 for background."""
-    depth: npt.NDArray[np.float32] | None = None
-    """Sensor depth (m) after :class:`DepthModel`, 0 where missing."""
     depth_ideal: npt.NDArray[np.float32] | None = None
-    """Exact depth (m) of the nearest surface, table included."""
-    rgb: npt.NDArray[np.uint8] | None = None
-    """PyBullet rendering, ``(H, W, 3)``."""
-
-
-@dataclass
-class Capture:
-    """Frames captured along a trajectory (:meth:`SimWorld.follow`)."""
-
-    times: npt.NDArray[np.float64]
-    """Simulated clock (s) of each frame."""
-    frames: list[Frame]
-
-    def __len__(self) -> int:
-        return len(self.frames)
-
-    @property
-    def poses(self) -> npt.NDArray[np.float64]:
-        """``(N, 4, 4)`` ``cam2world`` of the frames."""
-        return np.stack([f.cam2world for f in self.frames]) if self.frames else np.zeros((0, 4, 4))
-
-    @property
-    def positions(self) -> npt.NDArray[np.float64]:
-        """``(N, 3)`` camera positions (world, m)."""
-        return self.poses[:, :3, 3]
-
-    @property
-    def masks(self) -> npt.NDArray[np.bool_]:
-        """``(N, H, W)`` ideal silhouettes."""
-        return np.stack([f.mask for f in self.frames])
+    """Exact depth (m) of the nearest surface, table included (:attr:`depth` is the
+    sensor's, after :class:`DepthModel`)."""
 
 
 @dataclass
@@ -484,14 +455,14 @@ class SimWorld:
         *,
         depth: bool = True,
         rgb: bool = False,
-    ) -> Frame:
-        """Captures one frame from ``cam2world`` (OpenCV axes)."""
+    ) -> SimFrame:
+        """Captures one frame from ``cam2world`` (OpenCV axes), stamped :attr:`time`."""
         cam = camera or CameraSpec.continuous()
         pose = np.ascontiguousarray(cam2world, dtype=np.float64)
         core = cam.core()
         self.sync()
         labels = self.object_scene.render_labels(core, pose).astype(np.int32)
-        frame = Frame(cam2world=pose, camera=cam, mask=labels > 0, labels=labels)
+        frame = SimFrame(cam2world=pose, camera=cam, time=self.time, mask=labels > 0, labels=labels)
         if depth:
             table = self._table_depth(cam, pose)
             obj_depth = self.object_scene.render_depth(core, pose)
@@ -528,7 +499,7 @@ class SimWorld:
         ----------
         path
             Timed camera path (``cam2world`` poses), e.g. from
-            :func:`heapgrasp.sim.motion.plan_waypoints`.
+            :func:`heapgrasp.geometry.motion.plan_waypoints`.
         camera
             Intrinsics; default :meth:`CameraSpec.continuous` (320×240).
         fps
@@ -543,11 +514,12 @@ class SimWorld:
         times, poses = path.sample(fps)
         start = self.time
         frames: list[Frame] = []
-        for pose in poses:
+        for t, pose in zip(times, poses, strict=True):
             reached = pose if mount is None else mount.move_camera(pose)
+            self.time = start + float(t)
             frames.append(self.capture(reached, camera, depth=depth, rgb=rgb))
         self.time = start + path.duration
-        return Capture(times=start + times, frames=frames)
+        return Capture(times=start + times, frames=frames, duration=path.duration)
 
     def render_rgb(
         self, cam2world: npt.NDArray[np.float64], camera: CameraSpec | None = None

@@ -1,0 +1,90 @@
+"""The ``heapgrasp`` command line.
+
+Commands are grouped in subparsers, each group in its own module exposing
+``add_parser(subparsers)``; every leaf command sets ``func``, a callable taking the
+parsed :class:`argparse.Namespace` and returning the exit status::
+
+    heapgrasp run [options]                  simulated pick-and-place (HEAPGrasp, baselines)
+    heapgrasp bench carve|world|sim|grasp    benchmarks
+    heapgrasp sim capture                    frames of a seeded scene
+    heapgrasp critic data|train              the learned grasp critic
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+__all__ = ["build_parser", "main"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Builds the ``heapgrasp`` argument parser with all command groups.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The top-level parser.
+    """
+    from heapgrasp import __version__, bench
+    from heapgrasp.cli import critic as critic_cli
+    from heapgrasp.cli import run as run_cli
+    from heapgrasp.cli import show as show_cli
+    from heapgrasp.cli import sim as sim_cli
+
+    parser = argparse.ArgumentParser(
+        prog="heapgrasp",
+        description="HEAPGrasp: active-perception robotic grasping with a Rust core.",
+    )
+    parser.add_argument(
+        "--version",
+        action="version",
+        version=f"%(prog)s {__version__}",
+        help="print the version and exit",
+    )
+    commands = parser.add_subparsers(
+        dest="command", metavar="COMMAND", title="commands", required=True
+    )
+    run_cli.add_parser(commands)
+    show_cli.add_parser(commands)
+    bench.add_parser(commands)
+    sim_cli.add_parser(commands)
+    critic_cli.add_parser(commands)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Runs the ``heapgrasp`` command line.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Arguments without the program name (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status: 0 on success, 1 when a command fails (for benchmarks: a result
+        check failed), 2 on invalid arguments; ``--help`` and ``--version`` return 0.
+    """
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    try:
+        args = parser.parse_args(args_list)
+    except SystemExit as exc:  # --help, --version, or a usage error (already printed)
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    args.argv = args_list
+    try:
+        status: int = args.func(args)
+    except KeyboardInterrupt:
+        print("heapgrasp: interrupted", file=sys.stderr)
+        return 130
+    except (OSError, ValueError, RuntimeError) as exc:
+        print(f"heapgrasp: error: {exc}", file=sys.stderr)
+        return 1
+    return status
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

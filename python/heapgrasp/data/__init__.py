@@ -1,0 +1,1 @@
+"""Datasets generated in simulation from a root seed (the critic's today)."""

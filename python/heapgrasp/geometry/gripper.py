@@ -1,0 +1,101 @@
+"""The gripper's geometry, in one place: its collision model in the TCP frame, its widest
+opening and how deep its fingers reach. The grasp planners, the view planner's regions,
+the grasp execution sequence and the simulator all read it from here.
+
+The shipped networks and the analytic planner's defaults are for the Franka Panda hand
+(:data:`PANDA_HAND`, 8 cm opening, as VGN).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from heapgrasp.geometry.checks import finite, positive
+
+__all__ = ["PANDA_HAND", "GripperGeometry"]
+
+
+@dataclass(frozen=True)
+class GripperGeometry:
+    """Collision model of a parallel-jaw gripper in its TCP frame (metres).
+
+    The TCP frame is ``panda_grasptarget``: z is the approach direction (fingertips at
+    positive z), the fingers close along y, x runs across the finger width. The
+    defaults are the collision meshes of the Franka Panda hand
+    (``pybullet_data/franka_panda/meshes/collision``).
+
+    Parameters
+    ----------
+    finger_width
+        Finger extent along x.
+    finger_tip
+        z of the fingertips (0.7 cm beyond the TCP).
+    finger_base
+        z where the fingers leave the hand.
+    finger_split
+        z where the finger changes from its thin tip to its thicker base.
+    tip_thickness, base_thickness
+        Finger extent along y (from the inner pad outwards) of the tip and base parts.
+    palm_front
+        z of the hand's face toward the fingertips.
+    palm_split
+        z where the hand's narrow front part meets its wider back part.
+    palm_back
+        z of the back of the hand.
+    palm_front_half, palm_back_half
+        ``(x, y)`` half extents of the hand's front and back parts.
+    max_opening
+        Widest opening between the fingers (the Panda's 8 cm).
+    """
+
+    finger_width: float = 0.021
+    finger_tip: float = 0.0072
+    finger_base: float = -0.0466
+    finger_split: float = -0.02
+    tip_thickness: float = 0.016
+    base_thickness: float = 0.026
+    palm_front: float = -0.039
+    palm_split: float = -0.075
+    palm_back: float = -0.131
+    palm_front_half: tuple[float, float] = (0.022, 0.101)
+    palm_back_half: tuple[float, float] = (0.032, 0.104)
+    max_opening: float = 0.08
+
+    def __post_init__(self) -> None:
+        for name in ("finger_width", "tip_thickness", "base_thickness", "max_opening"):
+            positive(f"GripperGeometry.{name}", getattr(self, name))
+        for name in (
+            "finger_tip",
+            "finger_base",
+            "finger_split",
+            "palm_front",
+            "palm_split",
+            "palm_back",
+        ):
+            finite(f"GripperGeometry.{name}", getattr(self, name))
+        for name in ("palm_front_half", "palm_back_half"):
+            half = tuple(getattr(self, name))
+            if len(half) != 2:
+                raise ValueError(f"GripperGeometry.{name} must be 2 numbers, got {half}")
+            for h in half:
+                positive(f"GripperGeometry.{name}", h)
+            object.__setattr__(self, name, (float(half[0]), float(half[1])))
+        if not self.finger_base < self.finger_split < self.finger_tip:
+            raise ValueError(
+                "GripperGeometry.finger_base < finger_split < finger_tip is required, got "
+                f"{self.finger_base}, {self.finger_split}, {self.finger_tip}"
+            )
+        if not self.palm_back < self.palm_split < self.palm_front < self.finger_tip:
+            raise ValueError(
+                "GripperGeometry.palm_back < palm_split < palm_front < finger_tip is "
+                f"required, got {self.palm_back}, {self.palm_split}, {self.palm_front}"
+            )
+
+    @property
+    def finger_depth(self) -> float:
+        """How far the fingertips reach beyond the palm's face (m)."""
+        return self.finger_tip - self.palm_front
+
+
+#: The Franka Panda hand (VGN's gripper; the simulator's).
+PANDA_HAND = GripperGeometry()

@@ -1,0 +1,663 @@
+"""The closed loop of HEAPGrasp (Fig. 2, §IV) and its baselines (§VI-B), one phase at a time.
+
+A phase starts with the hand-eye camera at its initial pose ``p⁰`` and ends at the
+grasp (footnote 3 of the paper). :class:`Pipeline.plan` runs it:
+
+1. capture at ``p⁰`` and update the grid (perception, §IV-A);
+2. for ``heapgrasp`` (view planning): at every view waypoint ``ℓ = 0 .. L-1`` plan
+   grasps on ``Ŝ≥λ`` (eq. 11, 15; not where ``γ2 = 0``, whose target would steer
+   nothing), keep the target grasp closest to the previous one (eq. 16-17), score
+   the U×V candidates (eq. 13/14) and move to ``argmax s + γ2 h`` (eq. 18-19;
+   ``γ2 = gamma2_first`` at ``ℓ = 0``), capturing continuously along the
+   interpolated, ruckig-timed path (eq. 8);
+   for the fixed-view methods (``no-vp``, ``vgn``, ``hemisphere6``) visit the fixed
+   waypoints the same way;
+3. plan grasps on the final grid: ``heapgrasp`` keeps the target of eq. 16, the
+   baselines take the top-scoring grasp.
+
+The extensions (:mod:`heapgrasp.loop.policies`) are asked at fixed points: the early
+stop at each view waypoint from the second on, the rim sweep after the last one.
+
+Every method forgets candidates within ``failed_grasp_radius`` of a grasp that failed
+since the last success (:meth:`Pipeline.record_outcome`): an empty grasp usually leaves
+the scene as it was.
+
+The phase runs on any :class:`~heapgrasp.robot.interfaces.Robot`. Scene truth
+(:class:`~heapgrasp.robot.interfaces.SceneTruth`, simulation only) is optional: the
+oracle view scorer needs its meshes, and the phase's record names the object under the
+grasp where it is given.
+
+The camera path of the phase is every captured camera position followed by the grasp
+position (the camera reaches the grasp with the hand). The phase's compute time is the
+measured time of perception, grasp planning, view planning and selection (not the time
+spent simulating the camera); its motion time is the ruckig duration of every camera
+motion plus the straight approach to the pre-grasp pose.
+
+:func:`build_pipeline` assembles a pipeline from a :class:`~heapgrasp.loop.config.RunConfig`
+and a robot; every stage can also be passed in (any object satisfying its protocol).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from heapgrasp.geometry.camera import CameraSpec
+from heapgrasp.geometry.grid import GridFrame
+from heapgrasp.geometry.motion import MotionLimits, ViewSphere, plan_waypoints, time_path
+from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.observe import PhaseObserver
+from heapgrasp.loop.policies import EarlyStop, RimSweep
+from heapgrasp.loop.protocol import PlanResult
+from heapgrasp.perception.depth import DepthPerception
+from heapgrasp.perception.frames import Capture, Frame
+from heapgrasp.perception.segmenters import IdealSegmenter, MaskSource, NoisySegmenter, Segmenter
+from heapgrasp.perception.silhouette import SilhouettePerception
+from heapgrasp.planning.critic import DEFAULT_CRITIC, GraspCritic
+from heapgrasp.planning.selection import select_next_waypoint, select_target, top_scoring
+from heapgrasp.planning.views import OracleViewScorer, ViewContext, ViewScorer, fixed_waypoints
+from heapgrasp.planning.volumes import GraspCandidate, GraspPlanner, select_candidates
+from heapgrasp.robot.grasping import Grasp, GraspOutcome
+from heapgrasp.robot.interfaces import Robot, SceneTruth, UnreachableError
+
+__all__ = [
+    "ORACLE_FRAMES",
+    "Pipeline",
+    "build_pipeline",
+    "make_critic",
+    "make_grasp_planner",
+    "make_segmenter",
+    "make_view_scorer",
+]
+
+F64 = npt.NDArray[np.float64]
+
+#: Distance of the pre-grasp pose behind the grasp along its approach axis (m).
+PREGRASP_DISTANCE = 0.05
+#: Silhouettes per hypothetical path when the oracle scores a candidate (eq. 14), evenly
+#: spaced along the path (``docs/experiments.md`` measures 10 against 40).
+ORACLE_FRAMES = 10
+#: Frames (evenly spaced over the phase) that check the trimmed hull against their
+#: silhouettes (:func:`heapgrasp.perception.roofs.keep_silhouettes`).
+SILHOUETTE_VIEWS = 24
+#: With the scene memory: the most voxels the first frames of a phase may need beyond the
+#: remembered hull before the memory is dropped.
+MEMORY_TOLERANCE = 8
+
+
+def _candidate_record(c: GraspCandidate | None) -> dict[str, Any] | None:
+    if c is None:
+        return None
+    return {
+        "position": c.position.tolist(),
+        "quaternion": c.quaternion.tolist(),
+        "width": c.width,
+        "score": c.score,
+    }
+
+
+@dataclass
+class _PhaseLog:
+    """What one phase has done so far: where the camera is, where it has been."""
+
+    current: F64
+    positions: list[F64]
+    waypoints: list[dict[str, Any]] = field(default_factory=list)
+    compute: float = 0.0
+    motion: float = 0.0
+    stopped: dict[str, Any] | None = None
+    """Where ``stop_below`` ended the viewing early, and why; None: it did not."""
+    final_candidates: list[GraspCandidate] | None = None
+    """The grasps planned where the viewing stopped early, when they are those of a final
+    grid (scored by the critic, if any): the final grid is not planned again."""
+
+
+@dataclass
+class Pipeline:
+    """One method's phase planner (see the module docstring)."""
+
+    config: RunConfig
+    robot: Robot
+    grasp_planner: GraspPlanner
+    segmenter: Segmenter
+    view_scorer: ViewScorer | None = None
+    rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
+    critic: GraspCritic | None = None
+    """Drops candidates unlikely to hold an object (``RunConfig.grasp_critic``)."""
+    truth: SceneTruth | None = None
+    """The simulator's scene truth (the oracle's meshes, the object under a grasp)."""
+    observer: PhaseObserver | None = None
+    """Told what the phase does as it runs (:mod:`heapgrasp.loop.observe`)."""
+
+    def __post_init__(self) -> None:
+        cfg = self.config
+        self.frame = GridFrame((0.0, 0.0, 0.0), cfg.cube_size, cfg.resolution)
+        self.sphere = ViewSphere.for_cube((0.0, 0.0, 0.0), cfg.cube_size, radius=cfg.radius)
+        self.candidates = self.sphere.candidates(cfg.U, cfg.V, cfg.theta_max)
+        self.limits = MotionLimits(cfg.max_velocity, cfg.max_acceleration, cfg.max_jerk)
+        self.camera: CameraSpec = self.robot.arm.camera.spec
+        self.uses_depth = cfg.method == "vgn"
+        if self.uses_depth != self.robot.arm.camera.depth:
+            need = "needs a depth camera" if self.uses_depth else "takes no depth"
+            raise ConfigError(f"method {cfg.method!r} {need}; the robot's camera does not match")
+        if self.uses_depth:
+            self.perception: SilhouettePerception | DepthPerception = DepthPerception(self.frame)
+        else:
+            self.perception = SilhouettePerception(
+                self.frame,
+                self.segmenter,
+                cfg.lam,
+                roof_radius=cfg.roof_radius,
+                silhouette_views=SILHOUETTE_VIEWS,
+                memory=cfg.scene_memory,
+                memory_tolerance=MEMORY_TOLERANCE,
+            )
+        self.adaptive = cfg.method == "heapgrasp" and cfg.view_planner in ("oracle", "network")
+        self.early_stop = EarlyStop.from_config(cfg) if self.adaptive else None
+        self.sweep = RimSweep.from_config(cfg) if self.adaptive else None
+        self.joint_path_errors = 0
+        self.unreachable_waypoints = 0
+        self.phases_planned = 0
+        self.failed_grasps: list[F64] = []
+        if self.adaptive and self.view_scorer is None:
+            raise ConfigError(f"view_planner {cfg.view_planner!r} needs a view scorer")
+
+    # ------------------------------------------------------------------ pieces
+    def initial_pose(self) -> F64:
+        """``p⁰`` (``RunConfig.start``), looking at the centre of the scene."""
+        distance, theta, phi = self.config.start_pose
+        start = dataclasses.replace(self.sphere, radius=distance)
+        return start.pose(phi, theta)
+
+    def fixed_waypoints(self) -> F64:
+        """Waypoints of a fixed-view method (or view planner)."""
+        cfg = self.config
+        kind = cfg.view_planner if cfg.method == "heapgrasp" else cfg.method
+        kind = {"no-vp": "circle", "vgn": "circle"}.get(kind, kind)
+        return fixed_waypoints(kind, self.sphere, L=cfg.L, phi0=cfg.start_pose[2], rng=self.rng)
+
+    def _perceive(self, frames: list[Frame]) -> float:
+        t0 = time.perf_counter()
+        if self.observer is None:
+            self.perception.update(frames)
+            return time.perf_counter() - t0
+        # Frame by frame for the observer: the same grid (the counts add up alike).
+        for frame in frames:
+            self.perception.update([frame])
+            if isinstance(self.perception, SilhouettePerception):
+                self.observer.frame(frame, self.perception.last_mask, self.perception.grid)
+            else:
+                self.observer.frame(frame, None, None)
+        return time.perf_counter() - t0
+
+    def grasp_candidates(self) -> list[GraspCandidate]:
+        """Grasp planning on the current grid and eq. 15's post-processing; with a
+        critic, its probabilities are the scores."""
+        cfg = self.config
+        critic = self.critic
+        if (
+            isinstance(self.perception, DepthPerception)
+            and getattr(self.grasp_planner, "input_kind", "occupancy") == "tsdf"
+        ):
+            grid = self.perception.tsdf_values()
+        else:
+            grid = self.perception.grasp_input()
+        volumes = self.grasp_planner.predict(grid, self.frame)
+        sigma = cfg.sigma if cfg.sigma is not None else getattr(self.grasp_planner, "sigma", 1.0)
+        if cfg.epsilon is not None:
+            eps = cfg.epsilon
+        elif critic is not None:  # the critic's own ε applies to its probabilities
+            eps = critic.candidate_epsilon
+        else:
+            eps = getattr(self.grasp_planner, "epsilon", 0.8)
+        cands = select_candidates(
+            volumes, epsilon=float(eps), sigma=float(sigma), nms_window=cfg.nms_window
+        )
+        if self.failed_grasps and cfg.failed_grasp_radius > 0.0:
+            failed = np.asarray(self.failed_grasps)
+            cands = [
+                c
+                for c in cands
+                if np.min(np.linalg.norm(failed - c.position, axis=1)) > cfg.failed_grasp_radius
+            ]
+        if critic is not None and isinstance(self.perception, SilhouettePerception):
+            cands = critic.rescore(
+                cands,
+                grid,
+                self.perception.grid.high_confidence(cfg.lam),
+                self.frame,
+                self.perception.camera_positions(),
+            )
+        if self.observer is not None:
+            self.observer.candidates(cands)
+        return cands
+
+    def record_outcome(self, grasp: Grasp, outcome: GraspOutcome | str) -> None:
+        """Remembers a failed grasp (its candidates are dropped by
+        :meth:`grasp_candidates` from now on); a success clears the memory, since the
+        scene has changed. ``run_clutter_removal``'s ``on_outcome`` hook."""
+        if self.observer is not None:
+            self.observer.grasp(grasp, GraspOutcome(outcome))
+        if GraspOutcome(outcome) == GraspOutcome.SUCCESS:
+            self.failed_grasps.clear()
+        else:
+            self.failed_grasps.append(np.asarray(grasp.pose, dtype=np.float64)[:3, 3].copy())
+
+    def _move(self, start: F64, goal: F64) -> tuple[Capture, float] | None:
+        """Moves the camera to ``goal`` capturing; None if the arm cannot get there."""
+        (path,) = plan_waypoints(start, [goal], self.sphere, self.limits, self.config.fps)
+        try:
+            cap = self.robot.arm.follow(path)
+        except UnreachableError:  # skip this waypoint
+            self.unreachable_waypoints += 1
+            return None
+        if not cap.timing_kept:
+            self.joint_path_errors += 1  # followed at the Cartesian timing
+        return cap, self._perceive(cap.frames[1:])
+
+    # ------------------------------------------------------------------ one phase
+    def _visit(
+        self, phase: _PhaseLog, goal: F64, kind: str = "view"
+    ) -> tuple[Capture, float] | None:
+        """Moves the camera to ``goal`` capturing (:meth:`_move`) and logs the motion in
+        ``phase``; returns the capture and its duration, or None if unreachable."""
+        if self.observer is not None:
+            self.observer.waypoint(goal, kind)
+        moved = self._move(phase.current, goal)
+        if moved is None:
+            return None
+        cap, carve = moved
+        phase.compute += carve
+        phase.motion += cap.duration
+        phase.positions.extend(cap.positions[1:])
+        phase.current = cap.poses[-1]
+        return cap, cap.duration
+
+    def _view_step(
+        self,
+        phase: _PhaseLog,
+        cands: list[GraspCandidate] | None,
+        target: GraspCandidate | None,
+        gamma2: float,
+        t0: float,
+        t1: float,
+        *,
+        trusted: bool,
+        stop: EarlyStop | None = None,
+    ) -> bool:
+        """Eq. 18-19 from the current pose toward ``target``, then the move there with
+        continuous capture; ``cands``: the grasps planned here (None: not planned);
+        ``t0``/``t1``: when grasp planning began and ended. ``trusted``: the target may
+        steer the view scores (the oracle's target column). With ``stop`` and a target
+        it considers, no move is made where it says no candidate is worth one
+        (:class:`~heapgrasp.loop.policies.EarlyStop`). Returns False when it stopped."""
+        cfg = self.config
+        assert self.view_scorer is not None
+        assert isinstance(self.perception, SilhouettePerception)
+        ctx = ViewContext(
+            self.perception.grid,
+            phase.current,
+            self.candidates,
+            self.sphere,
+            self.camera,
+            cfg.lam,
+            None if self.truth is None else self.truth.meshes(),
+            target=None if target is None or not trusted else target.pose,
+        )
+        scores: npt.NDArray[np.float32] | None = None
+        if stop is not None and target is not None and stop.considers(target):
+            # The stop test counts eq. 14 on the target's region, whether or not that
+            # region steers the choice below (it does not where gamma2 = 0).
+            region_ctx = ctx if trusted else dataclasses.replace(ctx, target=target.pose)
+            region_scores = self.view_scorer.scores(region_ctx)
+            worth = stop.worth(region_scores, self.candidates, phase.current, target.pose)
+            if trusted:
+                scores = region_scores
+            if stop.stops(worth):
+                t2 = time.perf_counter()
+                phase.compute += t2 - t0
+                phase.stopped = {
+                    "target": _candidate_record(target),
+                    "grasp_candidates": None if cands is None else len(cands),
+                    "region_score_max": float(region_scores.max()),
+                    "worth_max": float(worth.max()),
+                    "grasp_planning_s": t1 - t0,
+                    "view_planning_s": t2 - t1,
+                }
+                if cands is not None:
+                    phase.final_candidates = cands
+                return False
+        if scores is None:
+            scores = self.view_scorer.scores(ctx)
+        t2 = time.perf_counter()
+        objective = scores
+        if cfg.move_weight > 0.0:
+            move = np.linalg.norm(self.candidates[..., :3, 3] - phase.current[:3, 3], axis=-1)
+            objective = scores - cfg.move_weight * move
+        u, v = select_next_waypoint(
+            objective,
+            self.candidates,
+            phase.current,
+            None if target is None else target.pose,
+            gamma2,
+            cfg.gamma1,
+        )
+        t3 = time.perf_counter()
+        phase.compute += t3 - t0
+        goal = self.candidates[u, v]
+        visited = self._visit(phase, goal)
+        if visited is None:
+            return True
+        cap, duration = visited
+        phase.waypoints.append(
+            {
+                "index": [u, v],
+                "position": goal[:3, 3].tolist(),
+                "view_score": float(scores[u, v]),
+                "view_score_max": float(scores.max()),
+                "gamma2": gamma2,
+                "target": _candidate_record(target),
+                "grasp_candidates": None if cands is None else len(cands),
+                "frames": len(cap),
+                "duration_s": duration,
+                "grasp_planning_s": t1 - t0,
+                "view_planning_s": t2 - t1,
+                "latency_s": t3 - t0,
+            }
+        )
+        return True
+
+    def _sweep(self, phase: _PhaseLog, sweep: RimSweep) -> None:
+        """The rim sweep (:class:`~heapgrasp.loop.policies.RimSweep`), capturing, until
+        the grasp planned at one of its waypoints is sure."""
+        cfg = self.config
+        goals = sweep.waypoints(
+            self.sphere, phase.current, np.asarray(phase.positions), cfg.theta_max, cfg.V
+        )
+        for goal in goals:
+            visited = self._visit(phase, goal, "sweep")
+            if visited is None:
+                continue
+            cap, duration = visited
+            record: dict[str, Any] = {
+                "sweep": True,
+                "position": goal[:3, 3].tolist(),
+                "frames": len(cap),
+                "duration_s": duration,
+            }
+            phase.waypoints.append(record)
+            t0 = time.perf_counter()
+            cands = self.grasp_candidates()
+            phase.compute += time.perf_counter() - t0
+            top = top_scoring(cands)
+            record["best_score"] = None if top is None else top.score
+            # planned on the grid as it is: the final grasp's, if no move follows
+            phase.final_candidates = cands
+            if sweep.sure(top):
+                return
+
+    def _final_choice(
+        self, cands: list[GraspCandidate], target: GraspCandidate | None
+    ) -> tuple[GraspCandidate | None, GraspCandidate | None]:
+        """The top-scoring candidate and the one to execute: for HEAPGrasp, eq. 16 once
+        more toward the last waypoint's ``target`` (the grasp its views were planned
+        for); for the fixed-view methods the top-scoring one."""
+        best = top_scoring(cands)
+        if self.adaptive:
+            return best, select_target(cands, target, self.config.gamma1)
+        return best, best
+
+    def _adaptive_views(self, phase: _PhaseLog) -> GraspCandidate | None:
+        """HEAPGrasp's view waypoints (eq. 16-19), then the rim sweep where it applies;
+        returns the last target grasp."""
+        cfg = self.config
+        target: GraspCandidate | None = None
+        for ell in range(cfg.L):
+            t0 = time.perf_counter()
+            gamma2 = cfg.gamma2_first if ell == 0 else cfg.gamma2
+            # The early stop plans a target even where gamma2 = 0, so that its region
+            # can be checked for views that would still carve it.
+            stop = self.early_stop if self.early_stop and self.early_stop.applies(ell) else None
+            if gamma2 == 0.0 and stop is None:
+                # §VI-B: with gamma2 = 0 a grasp planned here steers nothing (eq. 18
+                # uses s alone, the oracle counts the whole grid) and anchors no
+                # later target (below), so it is not planned at all: at p0 with
+                # Table I's gamma2_first, and at every waypoint with gamma2 = 0.
+                cands = None
+            else:
+                cands = self.grasp_candidates()
+                # No candidate at this waypoint: no target, and eq. 18 uses s alone.
+                target = select_target(cands, target, cfg.gamma1)
+                if self.observer is not None:
+                    self.observer.target(target)
+            # A target planned where gamma2 = 0 is unreliable (§VI-B): no region.
+            moved = self._view_step(
+                phase,
+                cands,
+                target,
+                gamma2,
+                t0,
+                time.perf_counter(),
+                trusted=gamma2 > 0,
+                stop=stop,
+            )
+            if not moved:
+                return target
+            if gamma2 == 0.0:
+                # §VI-B: grasps planned before the first view waypoint are unreliable,
+                # which is why gamma2 = 0 there; neither may such a grasp anchor the
+                # target of eq. 16 at the next waypoint.
+                target = None
+        # The sweep is for a grasp the phase is unsure of: where the plan before the last
+        # move found none, the phase ends as it would without the sweep.
+        planned = bool(phase.waypoints and phase.waypoints[-1].get("grasp_candidates"))
+        if self.sweep is not None and planned:
+            self._sweep(phase, self.sweep)
+        return target
+
+    def _fixed_views(self, phase: _PhaseLog) -> None:
+        """The fixed-view methods' waypoints."""
+        for goal in self.fixed_waypoints():
+            visited = self._visit(phase, goal, "fixed")
+            if visited is None:
+                continue
+            cap, duration = visited
+            phase.waypoints.append(
+                {
+                    "position": goal[:3, 3].tolist(),
+                    "frames": len(cap),
+                    "duration_s": duration,
+                }
+            )
+
+    def plan(self) -> PlanResult:
+        """Runs one phase up to the grasp (see the module docstring)."""
+        self.robot.arm.park()
+        self.perception.reset()
+        self.joint_path_errors = 0
+        self.unreachable_waypoints = 0
+        start = self.initial_pose()
+        if self.observer is not None:
+            self.observer.phase_started(self.phases_planned, start)
+        self.phases_planned += 1
+        first = self.robot.arm.look(start)
+        phase = _PhaseLog(first.cam2world, [first.cam2world[:3, 3]])
+        phase.compute += self._perceive([first])
+        target = self._adaptive_views(phase) if self.adaptive else None
+        if not self.adaptive:
+            self._fixed_views(phase)
+        t0 = time.perf_counter()
+        # Where viewing stopped early (or the sweep became sure) the grid is the one just
+        # planned there.
+        final = phase.final_candidates
+        cands = final if final is not None else self.grasp_candidates()
+        best, chosen = self._final_choice(cands, target)
+        final_latency = time.perf_counter() - t0
+        if self.observer is not None:
+            self.observer.target(chosen)
+        phase.compute += final_latency
+        memory: dict[str, Any] | None = None
+        if isinstance(self.perception, SilhouettePerception):
+            memory = self.perception.memory_record
+            self.perception.remember()
+        positions, motion = phase.positions, phase.motion
+        extra: dict[str, Any] = {
+            "waypoints": phase.waypoints,
+            "frames": self.perception.frames_seen,
+            "final_candidates": len(cands),
+            "final_planning_s": final_latency,
+            "stopped_early": phase.stopped,
+            "joint_path_errors": self.joint_path_errors,
+            "unreachable_waypoints": self.unreachable_waypoints,
+            "target_grasp": _candidate_record(chosen),
+            "best_grasp": _candidate_record(best),
+        }
+        if self.config.scene_memory:
+            extra["memory"] = memory
+        if chosen is None:
+            if self.observer is not None:
+                self.observer.phase_ended(None)
+            return PlanResult(
+                None, np.asarray(positions), motion, compute_time=phase.compute, extra=extra
+            )
+        grasp_position = chosen.pose[:3, 3]
+        # The camera travels with the hand to the pre-grasp pose, then approaches.
+        pregrasp = chosen.pose.copy()
+        pregrasp[:3, 3] -= PREGRASP_DISTANCE * chosen.pose[:3, 2]
+        approach = np.stack([phase.current, phase.current.copy()])
+        approach[1, :3, 3] = pregrasp[:3, 3]
+        motion += time_path(approach, self.limits).duration
+        positions.append(grasp_position)
+        opening = self.robot.gripper.geometry.max_opening
+        grasp = Grasp(chosen.pose, min(chosen.width, opening))
+        if self.observer is not None:
+            self.observer.phase_ended(grasp)
+        return PlanResult(
+            grasp,
+            np.asarray(positions),
+            motion,
+            target_object=None if self.truth is None else self.truth.object_near(grasp_position),
+            compute_time=phase.compute,
+            extra=extra,
+        )
+
+
+# --------------------------------------------------------------------------- builders
+
+
+def make_segmenter(config: RunConfig, truth: MaskSource, seed: int = 0) -> Segmenter:
+    """The simulator's segmenters: exact silhouettes from ``truth``, with pixel-flip noise
+    ``config.noise`` where it is > 0 (Table V)."""
+    if config.noise > 0:
+        return NoisySegmenter(truth, config.noise, seed=seed)
+    return IdealSegmenter(truth)
+
+
+def _weights(path: str | None, kind: str, option: str) -> Path:
+    if path:
+        p = Path(path)
+        if not p.is_file():
+            raise ConfigError(f"{option}: weights file not found: {p}")
+        return p
+    from heapgrasp.nets.weights import find_default
+
+    found = find_default(kind)  # type: ignore[arg-type]
+    if found is None:
+        raise ConfigError(
+            f"{option}: no {kind}-network weights ship with this version; pass a weights "
+            f"file, or use the analytic/oracle planners"
+        )
+    return found
+
+
+def net_device(config: RunConfig) -> str:
+    """The device the networks run on (:attr:`RunConfig.net_device`; ``auto`` resolved by
+    :func:`heapgrasp.nets.resolve_device`). A CUDA device that PyTorch cannot see is a
+    :class:`ConfigError`, not a quiet run on the CPU."""
+    # heapgrasp.nets first: without PyTorch it raises the "install heapgrasp[nets]" hint.
+    nets = importlib.import_module("heapgrasp.nets")
+    try:
+        device: str = nets.resolve_device(config.net_device)
+    except ValueError as err:
+        raise ConfigError(f"net_device: {err}") from None
+    return device
+
+
+def make_grasp_planner(config: RunConfig) -> GraspPlanner:
+    """The configured grasp planner (``antipodal`` or ``network``)."""
+    if config.grasp_planner == "antipodal":
+        from heapgrasp.planning.antipodal import AntipodalPlanner
+
+        return AntipodalPlanner()
+    from heapgrasp.planning.grasp_network import NetworkGraspPlanner
+
+    weights = _weights(config.grasp_weights, "grasp", "grasp_weights")
+    planner = NetworkGraspPlanner(weights, device=net_device(config))
+    if config.method == "vgn":
+        planner.input_kind = "tsdf"
+    return planner
+
+
+def make_critic(config: RunConfig) -> GraspCritic | None:
+    """The configured grasp critic (:attr:`RunConfig.critic`); None where there is none."""
+    source = config.critic
+    if source is None:
+        return None
+    path = DEFAULT_CRITIC if source == "default" else Path(source)
+    return GraspCritic.load(path)
+
+
+def make_view_scorer(config: RunConfig) -> ViewScorer | None:
+    """The configured view scorer; None for fixed-view methods."""
+    if config.method != "heapgrasp" or config.view_planner in ("circle", "hemisphere6"):
+        return None
+    if config.view_planner == "oracle":
+        return OracleViewScorer(
+            frames_per_candidate=ORACLE_FRAMES, target_radius=config.target_radius
+        )
+    from heapgrasp.planning.view_network import NetworkViewScorer
+
+    weights = _weights(config.view_weights, "view", "view_weights")
+    return NetworkViewScorer(weights, device=net_device(config))
+
+
+def build_pipeline(
+    config: RunConfig,
+    robot: Robot,
+    *,
+    segmenter: Segmenter,
+    truth: SceneTruth | None = None,
+    grasp_planner: GraspPlanner | None = None,
+    view_scorer: ViewScorer | None = None,
+    critic: GraspCritic | None = None,
+    observer: PhaseObserver | None = None,
+    seed: int = 0,
+) -> Pipeline:
+    """A :class:`Pipeline` for ``config`` on ``robot``; any stage passed explicitly
+    replaces the configured one. The oracle view planner needs ``truth``; ``observer``
+    is told what each phase does (:mod:`heapgrasp.loop.observe`)."""
+    if view_scorer is None:
+        view_scorer = make_view_scorer(config)
+    if isinstance(view_scorer, OracleViewScorer) and truth is None:
+        raise ConfigError(
+            "view_planner: the oracle scores views on the true meshes, which only the "
+            "simulator has; on a robot use view_planner = network, circle or hemisphere6"
+        )
+    return Pipeline(
+        config=config,
+        robot=robot,
+        grasp_planner=grasp_planner if grasp_planner is not None else make_grasp_planner(config),
+        segmenter=segmenter,
+        view_scorer=view_scorer,
+        rng=np.random.default_rng(seed),
+        critic=critic if critic is not None else make_critic(config),
+        truth=truth,
+        observer=observer,
+    )

@@ -1,0 +1,428 @@
+"""A learned grasp critic: the probability that a candidate on a measured hull holds an
+object, from the hull around it and the views that carved it.
+
+Silhouettes alone cannot tell a roof left by one-sided views from a real top
+(``docs/benchmarks.md``, "Verdict"): every bound built from the views was tried and moved
+failures between empty grasps and collisions. HEAPGrasp's answer (§V) is a grasp network
+trained on such hulls, which learns what the objects under a hull usually look like. The
+critic is that idea at the size of a logistic regression, as seed 001 §4 does for its
+view policies (PCA of a local volume + logistic regression): it re-scores the analytic
+planner's candidates instead of replacing the planner.
+
+Features of a candidate (:func:`candidate_features`):
+
+* two crops in the TCP frame (x across the fingers, y the closing axis, z the
+  approach), :data:`CROP_SHAPE` voxels at the grid's voxel size centred at the TCP: the
+  planner's input (roofs trimmed) and the untrimmed high-confidence grid ``Ŝ≥λ``; below
+  the table counts as occupied;
+* the planner's score, the opening, the approach's tilt from straight down, the TCP's
+  height, and how far the hull's column at the TCP rises above it;
+* the views as seen from the TCP: elevation (min, mean, max), how one-sided they are
+  (length of the mean horizontal direction), and how close any comes to grazing the
+  contact faces (min and mean ``|d·y|``) or the finger sides (min ``|d·x|``).
+
+The model (:class:`GraspCritic`), after standardisation: either (``linear``) PCA of the
+crops and logistic regression with an L2 penalty, fitted by Newton's method, or
+(``cnn``) a small 3-D convolutional network on the crops and the scalars
+(:mod:`heapgrasp.planning.critic_net`; trained with PyTorch, run in numpy). Trained on
+the train split's objects with :mod:`heapgrasp.data.critic`; the weights are
+one ``.npz`` of arrays plus the command and measurements that made them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from heapgrasp.geometry.grid import GridFrame
+from heapgrasp.geometry.gripper import PANDA_HAND
+from heapgrasp.planning.volumes import GraspCandidate
+
+if TYPE_CHECKING:
+    from heapgrasp.planning.critic_net import ConvCritic
+
+__all__ = [
+    "CROP_SHAPE",
+    "DEFAULT_CRITIC",
+    "MODELS",
+    "GraspCritic",
+    "candidate_features",
+    "crop_in_grasp_frame",
+    "fit_logistic",
+    "view_features",
+]
+
+F64 = npt.NDArray[np.float64]
+
+CROP_SHAPE = (7, 13, 12)
+"""Crop in voxels along the TCP's x (across the fingers), y (closing) and z (approach):
+±3 across, ±6 along the 8 cm opening, from 6 voxels behind the TCP (toward the palm)
+to 5 beyond it."""
+_CROP_LOW = (-3, -6, -6)
+
+DEFAULT_CRITIC = Path(__file__).resolve().parent.parent / "weights" / "critic.npz"
+"""The critic shipped with the package (``docs/critic.md``)."""
+
+N_SCALARS = 12
+
+
+def _lattice() -> F64:
+    axes = [
+        np.arange(lo, lo + n, dtype=np.float64) for lo, n in zip(_CROP_LOW, CROP_SHAPE, strict=True)
+    ]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    return grid.reshape(-1, 3)
+
+
+_LATTICE = _lattice()
+
+
+def _occupied(grid: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+    """``grid > 0.5`` (a bool grid as it is, without a copy)."""
+    g = np.asarray(grid)
+    return g if g.dtype == np.bool_ else np.asarray(g > 0.5)
+
+
+def crop_in_grasp_frame(grid: npt.ArrayLike, frame: GridFrame, pose: npt.ArrayLike) -> F64:
+    """``grid`` (R³, occupied > 0.5) sampled at :data:`CROP_SHAPE` points of the TCP
+    frame ``pose`` (nearest voxel); outside the grid 0, below the table 1. Returns the
+    flattened crop as 0/1."""
+    g = _occupied(grid)
+    p = np.asarray(pose, dtype=np.float64)
+    if p.shape != (4, 4) or not np.isfinite(p).all():
+        raise ValueError(f"pose must be a finite (4, 4) matrix, got shape {p.shape}")
+    points = p[:3, 3] + (_LATTICE * frame.voxel_size) @ p[:3, :3].T
+    idx = frame.index(points)
+    r = g.shape[0]
+    inside = np.all((idx >= 0) & (idx < r), axis=1)
+    out = np.zeros(len(points))
+    out[inside] = g[idx[inside, 0], idx[inside, 1], idx[inside, 2]]
+    out[points[:, 2] < frame.origin[2]] = 1.0
+    return out
+
+
+def view_features(pose: npt.ArrayLike, cameras: npt.ArrayLike) -> F64:
+    """The views seen from the TCP of ``pose``: elevation min, mean, max (rad); length
+    of the mean horizontal direction; min and mean ``|d·y|``; min ``|d·x|``."""
+    p = np.asarray(pose, dtype=np.float64)
+    cams = np.asarray(cameras, dtype=np.float64).reshape(-1, 3)
+    if len(cams) == 0:
+        raise ValueError("view_features needs at least one camera position")
+    d = cams - p[:3, 3]
+    d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
+    elev = np.arcsin(np.clip(d[:, 2], -1.0, 1.0))
+    horiz = d[:, :2] / np.maximum(np.linalg.norm(d[:, :2], axis=1, keepdims=True), 1e-9)
+    dy = np.abs(d @ p[:3, 1])
+    dx = np.abs(d @ p[:3, 0])
+    return np.array(
+        [
+            elev.min(),
+            elev.mean(),
+            elev.max(),
+            float(np.linalg.norm(horiz.mean(axis=0))),
+            dy.min(),
+            dy.mean(),
+            dx.min(),
+        ]
+    )
+
+
+def _column_rise(grid: npt.NDArray[np.bool_], frame: GridFrame, pose: F64) -> float:
+    """Height (m) of the hull's top in the TCP's column above the TCP (0 if empty)."""
+    i, j, _ = frame.index(pose[:3, 3])
+    r = grid.shape[0]
+    if not (0 <= i < r and 0 <= j < r):
+        return 0.0
+    col = np.flatnonzero(grid[i, j])
+    if col.size == 0:
+        return 0.0
+    top = frame.origin[2] + (col[-1] + 1) * frame.voxel_size
+    return float(top - pose[2, 3])
+
+
+def candidate_features(
+    grasp_input: npt.ArrayLike,
+    high: npt.ArrayLike,
+    frame: GridFrame,
+    pose: npt.ArrayLike,
+    width: float,
+    score: float,
+    cameras: npt.ArrayLike,
+) -> F64:
+    """The feature vector of one candidate: the two crops, then :data:`N_SCALARS`
+    scalars (see the module docstring)."""
+    p = np.asarray(pose, dtype=np.float64)
+    g = _occupied(grasp_input)
+    h = _occupied(high)
+    if g.shape != h.shape or g.shape != (frame.resolution,) * 3:
+        raise ValueError(
+            f"grids must both have shape {(frame.resolution,) * 3}, got {g.shape} and {h.shape}"
+        )
+    tilt = math.acos(float(np.clip(-p[2, 2], -1.0, 1.0)))
+    scalars = np.concatenate(
+        [
+            [
+                score,
+                width / PANDA_HAND.max_opening,
+                tilt,
+                (p[2, 3] - frame.origin[2]) / frame.size,
+                _column_rise(g, frame, p) / frame.size,
+            ],
+            view_features(p, cameras),
+        ]
+    )
+    return np.concatenate(
+        [crop_in_grasp_frame(g, frame, p), crop_in_grasp_frame(h, frame, p), scalars]
+    )
+
+
+def flip_pose(pose: npt.ArrayLike) -> F64:
+    """The same grasp with the fingers swapped (a half turn about the approach axis):
+    the Panda's hand is symmetric, so both poses are the same grasp."""
+    p = np.array(pose, dtype=np.float64)
+    p[:3, 0] *= -1.0
+    p[:3, 1] *= -1.0
+    return p
+
+
+def fit_logistic(x: F64, y: npt.ArrayLike, l2: float = 1.0, iterations: int = 50) -> F64:
+    """Logistic regression ``P(y=1) = σ(w·[x, 1])`` by Newton's method, L2 penalty
+    ``l2`` on ``w`` (not on the bias). Returns ``w`` with the bias last."""
+    t = np.asarray(y, dtype=np.float64)
+    if x.ndim != 2 or len(x) != len(t) or len(t) == 0:
+        raise ValueError(f"x must be (n, d) with n = len(y) > 0, got {x.shape} and {t.shape}")
+    xb = np.hstack([x, np.ones((len(x), 1))])
+    w = np.zeros(xb.shape[1])
+    reg = np.full(xb.shape[1], l2)
+    reg[-1] = 0.0
+    for _ in range(iterations):
+        prob = 1.0 / (1.0 + np.exp(-np.clip(xb @ w, -30, 30)))
+        grad = xb.T @ (prob - t) + reg * w
+        hess = (xb * (prob * (1 - prob))[:, None]).T @ xb + np.diag(reg) + 1e-9 * np.eye(len(w))
+        step = np.linalg.solve(hess, grad)
+        w -= step
+        if np.max(np.abs(step)) < 1e-8:
+            break
+    return w
+
+
+MODELS = ("linear", "cnn")
+"""The critic's model kinds (module docstring)."""
+
+
+@dataclass
+class GraspCritic:
+    """Standardise → PCA of the crops → logistic regression, or standardise → the
+    network of :mod:`~heapgrasp.planning.critic_net` (module docstring)."""
+
+    mean: F64
+    scale: F64
+    components: F64
+    """``(k, crop features)`` principal axes of the standardised crops (``k = 0`` with a
+    network)."""
+    weights: F64
+    """``k + N_SCALARS + 1`` logistic weights, bias last (unused with a network)."""
+    threshold: float = 0.7
+    """Candidates below this probability are dropped (:meth:`rescore`): the critic's ε."""
+    candidate_epsilon: float = 0.2
+    """Threshold ε on the analytic planner's score for the candidates the critic sees
+    (the data's, :class:`~heapgrasp.data.critic.CriticDataConfig`)."""
+    metadata: dict[str, Any] = field(default_factory=dict)
+    net: ConvCritic | None = None
+    """The convolutional model; None for the linear one."""
+
+    @property
+    def model(self) -> str:
+        """``"linear"`` or ``"cnn"``."""
+        return "linear" if self.net is None else "cnn"
+
+    def __post_init__(self) -> None:
+        n = len(self.mean)
+        n_crop = n - N_SCALARS
+        k = self.components.shape[0]
+        if (
+            self.scale.shape != (n,)
+            or self.components.shape != (k, n_crop)
+            or self.weights.shape != (k + N_SCALARS + 1,)
+            or n_crop != 2 * int(np.prod(CROP_SHAPE))
+        ):
+            raise ValueError(
+                "critic arrays do not fit together: "
+                f"mean {self.mean.shape}, scale {self.scale.shape}, "
+                f"components {self.components.shape}, weights {self.weights.shape}"
+            )
+        for name in ("threshold", "candidate_epsilon"):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f"{name} must be in [0, 1], got {value}")
+
+    # ------------------------------------------------------------------ model
+    def _design(self, features: F64) -> F64:
+        z = (features - self.mean) / self.scale
+        n_crop = self.components.shape[1]
+        return np.hstack([z[:, :n_crop] @ self.components.T, z[:, n_crop:]])
+
+    def probability(self, features: npt.ArrayLike) -> F64:
+        """``P(success)`` of each row of ``features`` (:func:`candidate_features`)."""
+        f = np.atleast_2d(np.asarray(features, dtype=np.float64))
+        if f.shape[1] != len(self.mean):
+            raise ValueError(f"features must have {len(self.mean)} columns, got {f.shape[1]}")
+        if self.net is not None:
+            logit = self.net.logits((f - self.mean) / self.scale)
+        else:
+            logit = self._design(f) @ self.weights[:-1] + self.weights[-1]
+        return np.asarray(1.0 / (1.0 + np.exp(-np.clip(logit, -30, 30))))
+
+    @classmethod
+    def fit(
+        cls,
+        features: F64,
+        labels: npt.ArrayLike,
+        *,
+        components: int = 32,
+        l2: float = 1.0,
+        threshold: float = 0.7,
+        candidate_epsilon: float = 0.2,
+        model: str = "linear",
+        epochs: int = 30,
+        weight_decay: float = 1e-2,
+        seed: int = 0,
+    ) -> GraspCritic:
+        """Fits the model on rows of :func:`candidate_features` and 0/1 labels:
+        ``linear`` uses ``components`` and ``l2``; ``cnn`` uses ``epochs``,
+        ``weight_decay`` and ``seed`` (:func:`~heapgrasp.planning.critic_net.fit_conv`,
+        needs PyTorch)."""
+        if model not in MODELS:
+            raise ValueError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
+        f = np.asarray(features, dtype=np.float64)
+        mean = f.mean(axis=0)
+        scale = f.std(axis=0)
+        scale[scale < 1e-6] = 1.0
+        z = (f - mean) / scale
+        n_crop = f.shape[1] - N_SCALARS
+        if model == "cnn":
+            from heapgrasp.planning.critic_net import fit_conv
+
+            net = fit_conv(z, labels, epochs=epochs, weight_decay=weight_decay, seed=seed)
+            empty = np.zeros((0, n_crop))
+            return cls(
+                mean, scale, empty, np.zeros(N_SCALARS + 1), threshold, candidate_epsilon, net=net
+            )
+        _, _, vt = np.linalg.svd(z[:, :n_crop], full_matrices=False)
+        comps = vt[: min(components, len(vt))]
+        design = np.hstack([z[:, :n_crop] @ comps.T, z[:, n_crop:]])
+        w = fit_logistic(design, labels, l2=l2)
+        return cls(mean, scale, comps, w, threshold, candidate_epsilon)
+
+    # ------------------------------------------------------------------ use
+    def score_candidates(
+        self,
+        candidates: Sequence[GraspCandidate],
+        grasp_input: npt.ArrayLike,
+        high: npt.ArrayLike,
+        frame: GridFrame,
+        cameras: npt.ArrayLike,
+    ) -> F64:
+        """``P(success)`` of each candidate (both finger assignments averaged)."""
+        if not candidates:
+            return np.zeros(0)
+        grasp_input, high = _occupied(grasp_input), _occupied(high)  # once for all rows
+        rows = []
+        for c in candidates:
+            for pose in (c.pose, flip_pose(c.pose)):
+                rows.append(
+                    candidate_features(grasp_input, high, frame, pose, c.width, c.score, cameras)
+                )
+        prob = self.probability(np.stack(rows))
+        return np.asarray(prob.reshape(-1, 2).mean(axis=1))
+
+    def rescore(
+        self,
+        candidates: Sequence[GraspCandidate],
+        grasp_input: npt.ArrayLike,
+        high: npt.ArrayLike,
+        frame: GridFrame,
+        cameras: npt.ArrayLike,
+    ) -> list[GraspCandidate]:
+        """The critic as the grasp quality of eq. 15: each candidate's score becomes its
+        probability of success, those below :attr:`threshold` are dropped, the rest are
+        returned best first (so eq. 16 picks among grasps the critic trusts)."""
+        if not candidates:
+            return []
+        prob = self.score_candidates(candidates, grasp_input, high, frame, cameras)
+        kept = [
+            dataclasses.replace(c, score=float(p))
+            for c, p in zip(candidates, prob, strict=True)
+            if p >= self.threshold
+        ]
+        return sorted(kept, key=lambda c: -c.score)
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: Path, *, command: str, metadata: dict[str, Any] | None = None) -> None:
+        """Writes the critic as ``.npz`` (arrays + JSON metadata with ``command``)."""
+        meta = dict(self.metadata)
+        meta.update(metadata or {})
+        meta.update(
+            command=command,
+            created=_dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            crop_shape=list(CROP_SHAPE),
+            model=self.model,
+        )
+        path.parent.mkdir(parents=True, exist_ok=True)
+        net: dict[str, Any] = (
+            {} if self.net is None else {f"net_{k}": v for k, v in self.net.arrays().items()}
+        )
+        np.savez_compressed(
+            path,
+            format=np.str_("heapgrasp-critic"),
+            version=np.int64(1 if self.net is None else 2),
+            **net,
+            mean=self.mean,
+            scale=self.scale,
+            components=self.components.astype(np.float32),
+            weights=self.weights,
+            threshold=np.float64(self.threshold),
+            candidate_epsilon=np.float64(self.candidate_epsilon),
+            metadata=np.str_(json.dumps(meta)),
+        )
+
+    @classmethod
+    def load(cls, path: Path | str) -> GraspCritic:
+        """Reads a critic written by :meth:`save`; a clear error for a missing or
+        foreign file."""
+        p = Path(path)
+        if not p.is_file():
+            raise FileNotFoundError(f"grasp critic file not found: {p}")
+        try:
+            with np.load(p, allow_pickle=False) as data:
+                version = int(data["version"])
+                if str(data["format"]) != "heapgrasp-critic" or version not in (1, 2):
+                    raise ValueError("not a heapgrasp critic (format/version)")
+                net = None
+                if version == 2:
+                    from heapgrasp.planning.critic_net import ARRAYS, ConvCritic
+
+                    net = ConvCritic(
+                        *(np.asarray(data[f"net_{k}"], dtype=np.float64) for k in ARRAYS)
+                    )
+                return cls(
+                    np.asarray(data["mean"], dtype=np.float64),
+                    np.asarray(data["scale"], dtype=np.float64),
+                    np.asarray(data["components"], dtype=np.float64),
+                    np.asarray(data["weights"], dtype=np.float64),
+                    float(data["threshold"]),
+                    float(data["candidate_epsilon"]),
+                    json.loads(str(data["metadata"])),
+                    net,
+                )
+        except (KeyError, OSError, ValueError) as exc:
+            raise ValueError(f"cannot read grasp critic {p}: {exc}") from exc

@@ -1,0 +1,80 @@
+"""A run's configuration made into simulated parts: the object library, the robot (the
+free-flying hand or the Panda arm with its hand-eye camera), the scene truth, and the
+loop's pipeline on them."""
+
+from __future__ import annotations
+
+from heapgrasp.geometry.camera import CameraSpec
+from heapgrasp.loop.config import RunConfig
+from heapgrasp.loop.observe import PhaseObserver
+from heapgrasp.loop.phase import Pipeline, build_pipeline, make_segmenter
+from heapgrasp.planning.critic import GraspCritic
+from heapgrasp.planning.views import ViewScorer
+from heapgrasp.planning.volumes import GraspPlanner
+from heapgrasp.sim.objects import ObjectLibrary
+from heapgrasp.sim.robot import Robot, SimCamera, SimRobot
+from heapgrasp.sim.truth import SimTruth
+from heapgrasp.sim.world import SimWorld
+
+__all__ = ["make_body", "object_library", "sim_camera", "sim_pipeline"]
+
+
+def object_library(config: RunConfig) -> ObjectLibrary:
+    """The object library of ``config.object_set`` (generated once into the cache)."""
+    if config.object_set == "procedural":
+        return ObjectLibrary.default(random_urdfs=0, mug=False, procedural_per_kind=16)
+    return ObjectLibrary.default()
+
+
+def sim_camera(config: RunConfig, *, rgb: bool = False) -> SimCamera:
+    """The method's camera: VGN's 640×480 depth camera (HEAPGrasp §VI-B), else the
+    320×240 RGB camera of continuous capture; ``rgb`` renders colour images too (slow,
+    for recordings: the loop's segmenters read the scene truth)."""
+    if config.method == "vgn":
+        return SimCamera(CameraSpec.still(), depth=True, rgb=rgb)
+    return SimCamera(CameraSpec.continuous(), depth=False, rgb=rgb)
+
+
+def make_body(config: RunConfig, world: SimWorld) -> Robot:
+    """The free-flying hand or the Panda arm (``config.mount``)."""
+    if config.mount == "arm":
+        from heapgrasp.sim.arm import ArmConfig, PandaArm
+
+        # The arm picks the camera roll about the viewing axis: paths leaving the top of
+        # the view sphere would otherwise spin the wrist past its limits.
+        return PandaArm(world, ArmConfig(camera_roll="free"))
+    from heapgrasp.sim.gripper import PandaHand
+
+    return PandaHand(world)
+
+
+def sim_pipeline(
+    config: RunConfig,
+    world: SimWorld,
+    *,
+    seed: int = 0,
+    body: Robot | None = None,
+    grasp_planner: GraspPlanner | None = None,
+    view_scorer: ViewScorer | None = None,
+    critic: GraspCritic | None = None,
+    observer: PhaseObserver | None = None,
+    rgb: bool = False,
+) -> Pipeline:
+    """The pipeline of ``config`` in ``world`` (after ``world.reset``): the simulated robot
+    (``body``, default :func:`make_body`), its scene truth, and the segmenter reading
+    exact (or noisy) silhouettes from it; any stage passed replaces the configured one.
+    ``rgb``: the camera renders colour images too (:func:`sim_camera`)."""
+    camera = sim_camera(config, rgb=rgb)
+    robot = SimRobot(body if body is not None else make_body(config, world), camera)
+    truth = SimTruth(world, robot.body)
+    return build_pipeline(
+        config,
+        robot,
+        segmenter=make_segmenter(config, truth, seed),
+        truth=truth,
+        grasp_planner=grasp_planner,
+        view_scorer=view_scorer,
+        critic=critic,
+        observer=observer,
+        seed=seed,
+    )

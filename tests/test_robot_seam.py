@@ -1,0 +1,185 @@
+"""The robot seam: one whole HEAPGrasp phase and a grasp on a robot that is not the
+simulator, with PyBullet (and PyTorch) blocked; the layers of the package."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
+from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.phase import build_pipeline
+from heapgrasp.robot.interfaces import Arm, Camera, Gripper, Robot, SceneTruth
+
+TESTS = Path(__file__).resolve().parent
+BOXES = [((0.11, 0.15, 0.035), (0.05, 0.04, 0.07)), ((0.20, 0.14, 0.03), (0.04, 0.04, 0.06))]
+
+#: Makes importing the named packages fail in the interpreter that runs it.
+BLOCK = textwrap.dedent(
+    """
+    import importlib.abc, sys
+
+    class Blocked(importlib.abc.MetaPathFinder):
+        def __init__(self, names):
+            self.names = set(names)
+
+        def find_spec(self, name, path=None, target=None):
+            if name.split(".")[0] in self.names:
+                raise ImportError(f"{name} is blocked in this test")
+            return None
+    """
+)
+
+#: Runs in a fresh interpreter where importing pybullet, pybullet_data or torch fails.
+PHASE = BLOCK + textwrap.dedent(
+    f"""
+    import json
+    BLOCKED = ("pybullet", "pybullet_data", "torch", "rerun")
+    sys.meta_path.insert(0, Blocked(BLOCKED))
+    sys.path.insert(0, {str(TESTS)!r})
+    from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
+    from heapgrasp.loop.config import RunConfig
+    from heapgrasp.loop.phase import build_pipeline
+    from heapgrasp.loop.protocol import run_clutter_removal
+    from heapgrasp.planning.views import OracleViewScorer
+
+    scene = FakeScene({BOXES!r})
+    robot = FakeRobot(scene)
+    truth = FakeTruth(scene, robot)
+    config = RunConfig()  # HEAPGrasp with the oracle's views and the numpy critic
+    pipeline = build_pipeline(config, robot, segmenter=RedSegmenter(), truth=truth)
+    assert isinstance(pipeline.view_scorer, OracleViewScorer)
+    assert pipeline.critic is not None
+    phases, reason = run_clutter_removal(robot, pipeline.plan, truth=truth, max_attempts=1)
+    phase = phases[0]
+    print(json.dumps({{
+        "outcome": phase.outcome,
+        "waypoints": len(phase.extra["waypoints"]),
+        "frames": phase.extra["frames"],
+        "looks": robot.arm.looks,
+        "paths": len(robot.arm.paths),
+        "placed": truth.placed_ids,
+        "object": phase.object_id,
+        "closed_at": robot.gripper.closed_at[0][:3, 3].tolist(),
+        "trajectory": phase.to_dict()["trajectory_length_m"],
+        "imported": [n for n in BLOCKED if n in sys.modules],
+    }}))
+    """
+)
+
+
+def test_a_heapgrasp_phase_and_its_grasp_run_without_pybullet_or_torch() -> None:
+    done = subprocess.run(
+        [sys.executable, "-c", PHASE], capture_output=True, text=True, timeout=600, check=False
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result["imported"] == []
+    # Perception, grasp planning, L = 3 view waypoints planned by eq. 14, selection...
+    assert result["waypoints"] == RunConfig().L
+    assert result["looks"] == 1 and result["paths"] == RunConfig().L
+    assert result["frames"] > 3 * RunConfig().L
+    assert result["trajectory"] > 0.0
+    # ...and a grasp, executed through the seam: the gripper closed on a box, which was
+    # placed in the bin.
+    assert result["outcome"] == "success", result
+    assert result["placed"] == [result["object"]] and result["object"] in (1, 2)
+
+
+def test_the_fake_and_the_simulated_robot_satisfy_the_seam() -> None:
+    scene = FakeScene(BOXES)
+    robot = FakeRobot(scene)
+    assert isinstance(robot, Robot) and isinstance(robot.arm, Arm)
+    assert isinstance(robot.arm.camera, Camera) and isinstance(robot.gripper, Gripper)
+    assert isinstance(FakeTruth(scene, robot), SceneTruth)
+
+    from heapgrasp.sim.build import object_library, sim_camera
+    from heapgrasp.sim.gripper import PandaHand
+    from heapgrasp.sim.robot import SimRobot
+    from heapgrasp.sim.truth import SimTruth
+    from heapgrasp.sim.world import SimWorld
+
+    config = RunConfig(objects=2)
+    with SimWorld(object_library(config), seed=0) as world:
+        hand = PandaHand(world)
+        sim = SimRobot(hand, sim_camera(config))
+        assert isinstance(sim, Robot) and isinstance(sim.arm, Arm)
+        assert isinstance(sim.arm.camera, Camera) and isinstance(sim.gripper, Gripper)
+        assert isinstance(SimTruth(world, hand), SceneTruth)
+
+
+def test_without_scene_truth_the_oracle_is_refused_and_fixed_views_run() -> None:
+    scene = FakeScene(BOXES)
+    robot = FakeRobot(scene)
+    with pytest.raises(ConfigError, match="only the simulator has"):
+        build_pipeline(RunConfig(), robot, segmenter=RedSegmenter())
+    # A real robot's HEAPGrasp w/o VP: the circle, segmented from RGB, no truth at all.
+    pipeline = build_pipeline(RunConfig(method="no-vp"), robot, segmenter=RedSegmenter())
+    planned = pipeline.plan()
+    assert planned.grasp is not None and planned.target_object is None
+    assert len(robot.arm.paths) == RunConfig().L + 1  # once around: back to the first
+    assert np.isfinite(planned.camera_positions).all()
+
+
+def test_a_method_needing_depth_refuses_a_camera_without_it() -> None:
+    robot = FakeRobot(FakeScene(BOXES))
+    with pytest.raises(ConfigError, match="needs a depth camera"):
+        build_pipeline(RunConfig(method="vgn"), robot, segmenter=RedSegmenter())
+
+
+PERCEPTION_AND_PLANNING_TESTS = (
+    "test_roofs",
+    "test_memory",
+    "test_viewplan",
+    "test_selection",
+    "test_motion",
+    "test_score",
+    "test_visual_hull",
+    "test_robot_seam",
+)
+
+
+def test_the_tests_of_perception_and_planning_need_no_pybullet() -> None:
+    script = BLOCK + textwrap.dedent(
+        f"""
+        import importlib
+        sys.meta_path.insert(0, Blocked(("pybullet", "pybullet_data")))
+        sys.path.insert(0, {str(TESTS)!r})
+        for name in {PERCEPTION_AND_PLANNING_TESTS!r}:
+            importlib.import_module(name)
+        assert "pybullet" not in sys.modules
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=False
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+
+
+def test_a_run_that_needs_a_missing_dependency_fails_before_any_scene(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    script = BLOCK + textwrap.dedent(
+        f"""
+        sys.meta_path.insert(0, Blocked(("torch",)))
+        from heapgrasp.cli import main
+        raise SystemExit(main(["run", "--view-planner", "network", "--out", {str(out)!r}]))
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=False
+    )
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert "heapgrasp[nets]" in done.stderr and "Traceback" not in done.stderr
+    assert not out.exists(), "nothing is written before the run can start"
+    # a weights file that does not exist: the same, naming the file
+    from heapgrasp.cli import main
+
+    missing = tmp_path / "views.pt"
+    argv = ["run", "--view-planner", "network", "--view-weights", str(missing)]
+    assert main([*argv, "--out", str(out)]) == 2
+    assert not out.exists()
