@@ -163,7 +163,7 @@ class FakeGripper:
     def open(self) -> None:
         self.held = None
 
-    def close(self) -> None:
+    def close(self, width: float | None = None) -> None:
         self.closed_at.append(self.arm.tcp.copy())
         self.held = self.arm.scene.under(self.arm.tcp)
 

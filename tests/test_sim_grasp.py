@@ -112,3 +112,21 @@ def test_bad_grasps_are_rejected() -> None:
         Grasp(tcp((0, 0, 0)), width=float("nan"))
     with pytest.raises(ValueError, match="rigid"):
         Grasp(tcp((0, 0, 0), rotation=2 * np.eye(3)), width=0.05)
+
+
+def test_the_simulated_gripper_closes_to_a_width_or_until_it_meets_something(
+    world_with_box: tuple[SimWorld, int],
+) -> None:
+    from heapgrasp.sim.robot import SimRobot
+
+    world, _ = world_with_box
+    with world:
+        hand = PandaHand(world)
+        robot = SimRobot(hand)
+        assert robot.gripper.geometry.max_opening == pytest.approx(0.08)
+        robot.gripper.open()
+        assert hand.width() == pytest.approx(0.08, abs=2e-3)
+        robot.gripper.close(width=0.03)  # in free space: stops at the width asked
+        assert hand.width() == pytest.approx(0.03, abs=2e-3) and not robot.gripper.holding()
+        robot.gripper.close()  # shut
+        assert hand.width() < 0.005

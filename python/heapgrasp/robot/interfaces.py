@@ -136,8 +136,9 @@ class Gripper(Protocol):
         """Opens fully."""
         ...
 
-    def close(self) -> None:
-        """Closes until contact (force-limited) or shut."""
+    def close(self, width: float | None = None) -> None:
+        """Closes to ``width`` (m), or with None until the fingers meet something
+        (force-limited) or shut."""
         ...
 
     def holding(self) -> bool:

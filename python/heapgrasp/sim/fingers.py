@@ -57,9 +57,10 @@ class Fingers:
         states = pb.getJointStates(self.body, list(self.finger_joints), physicsClientId=self.client)
         return float(sum(s[0] for s in states))
 
-    def close(self, seconds: float = 0.5) -> None:
-        """Closes the fingers (force-limited)."""
-        self._finger_targets(0.0)
+    def close(self, seconds: float = 0.5, width: float = 0.0) -> None:
+        """Closes the fingers toward ``width`` (m; 0: shut), force-limited: they stop on
+        whatever they meet."""
+        self._finger_targets(width)
         self.step(int(seconds / self.world.config.time_step))
 
     def open(self, seconds: float = 0.3) -> None:

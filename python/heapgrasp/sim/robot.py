@@ -80,7 +80,7 @@ class Robot(CameraMount, Protocol):
         """Straight-line TCP motion; False if it stopped on a contact."""
         ...
 
-    def close(self, seconds: float = ...) -> None:
+    def close(self, seconds: float = ..., width: float = ...) -> None:
         """Closes the fingers (force-limited)."""
         ...
 
@@ -207,9 +207,12 @@ class SimGripper:
         """Opens fully."""
         self.body.open()
 
-    def close(self) -> None:
-        """Closes, force-limited."""
-        self.body.close()
+    def close(self, width: float | None = None) -> None:
+        """Closes toward ``width`` (None: shut), force-limited."""
+        if width is None:
+            self.body.close()
+        else:
+            self.body.close(width=width)
 
     def holding(self) -> bool:
         """Whether both fingers touch one object."""
