@@ -7,7 +7,7 @@ Entities (world frame, metres, z up):
   where the camera delivers one) and ``mask`` (the silhouette carved);
 * ``world/camera_path`` — the camera's path in the phase so far;
 * ``world/grid/occupancy`` and ``world/grid/high_confidence`` — eq. 10's grid after each
-  frame, and ``Ŝ≥λ``;
+  frame (the voxels at occupancy ≥ 0.5, blue to red with it) and ``Ŝ≥λ`` (boxes);
 * ``world/waypoints`` — the waypoints visited (view, fixed or sweep);
 * ``world/grasps/candidates``, ``world/grasps/target``, ``world/grasps/executed`` —
   approach arrows 5 cm long ending at the TCP; the executed one is green on success;
@@ -89,6 +89,7 @@ class RerunRecorder(PhaseObserver):
         self.rec: Any = self.rr.RecordingStream("heapgrasp", recording_id=name or None)
         self.rec.save(str(self.path))
         self.frames = 0
+        self._intrinsics: object = None
         self.phase = -1
         self._path: list[F64] = []
         self._waypoints: list[F64] = []
@@ -123,19 +124,23 @@ class RerunRecorder(PhaseObserver):
         pose = frame.cam2world
         cam = frame.camera
         rec.log("world/camera", rr.Transform3D(translation=pose[:3, 3], mat3x3=pose[:3, :3]))
-        rec.log(
-            "world/camera",
-            rr.Pinhole(
-                focal_length=[cam.fx, cam.fy],
-                principal_point=[cam.cx, cam.cy],
-                width=cam.width,
-                height=cam.height,
-                camera_xyz=rr.ViewCoordinates.RDF,
-                image_plane_distance=0.05,
-            ),
-        )
+        if cam != self._intrinsics:  # the intrinsics change only with the camera
+            self._intrinsics = cam
+            rec.log(
+                "world/camera",
+                rr.Pinhole(
+                    focal_length=[cam.fx, cam.fy],
+                    principal_point=[cam.cx, cam.cy],
+                    width=cam.width,
+                    height=cam.height,
+                    camera_xyz=rr.ViewCoordinates.RDF,
+                    image_plane_distance=0.05,
+                ),
+                static=True,
+            )
         if frame.rgb is not None:
-            rec.log("world/camera/image", rr.Image(frame.rgb))
+            # JPEG: a phase's hundred frames stay a few MB
+            rec.log("world/camera/image", rr.Image(frame.rgb).compress(jpeg_quality=85))
         if mask is not None:
             rec.log("world/camera/mask", rr.SegmentationImage(mask.astype(np.uint8)))
         self._path.append(np.asarray(pose[:3, 3], dtype=np.float64))
@@ -146,9 +151,10 @@ class RerunRecorder(PhaseObserver):
     def _grid(self, grid: OccupancyGrid) -> None:
         rr = self.rr
         occupancy = grid.occupancy()
-        seen = np.argwhere(occupancy > 0)
+        # At least even odds: every voxel a silhouette ever covered would be ten times more.
+        seen = np.argwhere(occupancy >= 0.5)
         centres = self.grid_frame.centers(seen)
-        shade = (255 * occupancy[tuple(seen.T)]).astype(np.uint8)
+        shade = (255 * (2.0 * occupancy[tuple(seen.T)] - 1.0)).astype(np.uint8)
         colors = np.stack([shade, 64 * np.ones_like(shade), 255 - shade], axis=1)
         radius = 0.35 * self.grid_frame.voxel_size
         self.rec.log("world/grid/occupancy", rr.Points3D(centres, colors=colors, radii=radius))
