@@ -66,9 +66,7 @@ def figure_paths(
 def figure_grids(base: RunConfig, methods: Sequence[str], path: Path, *, scene: int = 0) -> None:
     """The measured grid after the first phase's views of ``scene`` per method (Fig. 4),
     re-running that phase in-process."""
-    from heapgrasp.sim.build import object_library, sim_pipeline
-    from heapgrasp.sim.optics import DepthModel
-    from heapgrasp.sim.world import SimWorld, WorldConfig
+    from heapgrasp.sim.build import object_library, scene_world, sim_pipeline
 
     plt = _pyplot()
     fig = plt.figure(figsize=(4.5 * len(methods), 4.5))
@@ -78,19 +76,7 @@ def figure_grids(base: RunConfig, methods: Sequence[str], path: Path, *, scene: 
         config = base.replace({"method": method})
         seed = config.seed + scene
         ax = fig.add_subplot(1, len(methods), k + 1, projection="3d")
-        with SimWorld(
-            library,
-            config=WorldConfig(cube_size=config.cube_size),
-            depth_model=DepthModel(ideal=config.ideal_depth),
-            seed=seed,
-        ) as world:
-            world.reset(
-                layout=config.layout,  # type: ignore[arg-type]
-                n_objects=config.objects,
-                category=group,
-                seed=seed,
-                split=config.split,  # type: ignore[arg-type]
-            )
+        with scene_world(config, seed, group, library=library) as world:
             pipeline = sim_pipeline(config, world, seed=seed)
             planned = pipeline.plan()
             grid = pipeline.perception.grasp_input()

@@ -96,28 +96,12 @@ def run_scene(
     ``record``, every phase is recorded there as a ``.rrd`` file (:mod:`heapgrasp.viz`),
     with RGB images rendered for it (the outcomes are the same)."""
     from heapgrasp.loop.protocol import run_clutter_removal
-    from heapgrasp.sim.build import object_library, sim_pipeline
-    from heapgrasp.sim.optics import DepthModel
-    from heapgrasp.sim.world import SimWorld, WorldConfig
+    from heapgrasp.sim.build import scene_world, sim_pipeline
 
     t0 = time.perf_counter()
     seed = config.seed + index
     group = category or config.category
-    library = object_library(config)
-    with SimWorld(
-        library,
-        config=WorldConfig(cube_size=config.cube_size),
-        depth_model=DepthModel(ideal=config.ideal_depth),
-        gui=gui,
-        seed=seed,
-    ) as world:
-        world.reset(
-            layout=config.layout,  # type: ignore[arg-type]
-            n_objects=config.objects,
-            category=group,
-            seed=seed,
-            split=config.split,  # type: ignore[arg-type]
-        )
+    with scene_world(config, seed, group, gui=gui) as world:
         scene = world.to_dict()
         total = len(world.objects)
         recorder = None

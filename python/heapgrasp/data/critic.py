@@ -133,11 +133,9 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
 
     from heapgrasp.perception.silhouette import SilhouettePerception
     from heapgrasp.planning.volumes import select_candidates
-    from heapgrasp.sim.build import make_body, object_library, sim_pipeline
+    from heapgrasp.sim.build import make_body, object_library, scene_world, sim_pipeline
     from heapgrasp.sim.gripper import MAX_OPENING, Grasp, GraspOutcome, execute_grasp
     from heapgrasp.sim.objects import generate_procedural
-    from heapgrasp.sim.optics import DepthModel
-    from heapgrasp.sim.world import SimWorld, WorldConfig
 
     run_config = config.run_config(index)
     seed = config.seed + index
@@ -151,19 +149,7 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
                 library.cache_dir, count_per_kind=16, seed=object_seed, test_fraction=0.0
             )
         )
-    with SimWorld(
-        library,
-        config=WorldConfig(cube_size=run_config.cube_size),
-        depth_model=DepthModel(ideal=run_config.ideal_depth),
-        seed=seed,
-    ) as world:
-        world.reset(
-            layout=run_config.layout,  # type: ignore[arg-type]
-            n_objects=run_config.objects,
-            category=categories[index % 4],
-            seed=seed,
-            split=config.split,
-        )
+    with scene_world(run_config, seed, categories[index % 4], library=library) as world:
         names = [o.model.name for o in world.objects.values()]
         body = make_body(run_config, world)
         pipeline = sim_pipeline(run_config, world, seed=seed, body=body)

@@ -68,7 +68,9 @@ from heapgrasp.robot.grasping import Grasp, GraspOutcome
 from heapgrasp.robot.interfaces import Robot, SceneTruth, UnreachableError
 
 __all__ = [
+    "MEMORY_TOLERANCE",
     "ORACLE_FRAMES",
+    "SILHOUETTE_VIEWS",
     "Pipeline",
     "build_pipeline",
     "make_critic",

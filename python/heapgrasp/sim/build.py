@@ -4,6 +4,9 @@ loop's pipeline on them."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.loop.config import RunConfig
 from heapgrasp.loop.observe import PhaseObserver
@@ -12,11 +15,12 @@ from heapgrasp.planning.critic import GraspCritic
 from heapgrasp.planning.views import ViewScorer
 from heapgrasp.planning.volumes import GraspPlanner
 from heapgrasp.sim.objects import ObjectLibrary
+from heapgrasp.sim.optics import DepthModel
 from heapgrasp.sim.robot import Robot, SimCamera, SimRobot
 from heapgrasp.sim.truth import SimTruth
-from heapgrasp.sim.world import SimWorld
+from heapgrasp.sim.world import SimWorld, WorldConfig
 
-__all__ = ["make_body", "object_library", "sim_camera", "sim_pipeline"]
+__all__ = ["make_body", "object_library", "scene_world", "sim_camera", "sim_pipeline"]
 
 
 def object_library(config: RunConfig) -> ObjectLibrary:
@@ -24,6 +28,35 @@ def object_library(config: RunConfig) -> ObjectLibrary:
     if config.object_set == "procedural":
         return ObjectLibrary.default(random_urdfs=0, mug=False, procedural_per_kind=16)
     return ObjectLibrary.default()
+
+
+@contextmanager
+def scene_world(
+    config: RunConfig,
+    seed: int,
+    category: str,
+    *,
+    library: ObjectLibrary | None = None,
+    gui: bool = False,
+) -> Iterator[SimWorld]:
+    """A world holding the scene of ``seed`` (``config``'s layout, objects and split, the
+    scene group ``category``), settled; closed on exit. ``library`` defaults to
+    :func:`object_library`."""
+    with SimWorld(
+        library if library is not None else object_library(config),
+        config=WorldConfig(cube_size=config.cube_size),
+        depth_model=DepthModel(ideal=config.ideal_depth),
+        gui=gui,
+        seed=seed,
+    ) as world:
+        world.reset(
+            layout=config.layout,  # type: ignore[arg-type]
+            n_objects=config.objects,
+            category=category,
+            seed=seed,
+            split=config.split,  # type: ignore[arg-type]
+        )
+        yield world
 
 
 def sim_camera(config: RunConfig, *, rgb: bool = False) -> SimCamera:
