@@ -231,15 +231,15 @@ def test_viewing_stops_early_where_no_look_would_carve_the_target(
     tmp_path: Path, changes: dict[str, Any], view_level: float, waypoints: int
 ) -> None:
     # gamma2 = 0 at every waypoint (whole-grid eq. 18): without the early stop nothing
-    # is planned before the final grid; with it the target is planned from the
-    # stop_after-th waypoint on, and its region's scores decide.
+    # is planned before the final grid; with it the target is planned from the second
+    # waypoint on (EarlyStop.after = 1), and its region's scores decide.
     model = box_model(tmp_path, BOX)
     planned = [
         [_candidate(0.25, 0.9), _candidate(0.06, 0.5)],  # at the first waypoint
         [_candidate(0.24, 0.99)],  # at the second
         [_candidate(0.23, 0.99)],  # at the third: the final grid
     ]
-    # Planned at the k-th waypoint from the stop_after-th on (not at all without the
+    # Planned at each waypoint from the second on (not at all without the
     # early stop), then on the final grid, which is not planned again after a stop: the
     # script runs dry if it is.
     first = 1 if changes else 3
@@ -298,9 +298,7 @@ def test_a_phase_that_never_stopped_sweeps_along_the_rim(
 
 
 @pytest.mark.parametrize("sure_at", [2, None])
-def test_a_sweep_with_sweep_stop_ends_where_the_grasp_is_sure(
-    tmp_path: Path, sure_at: int | None
-) -> None:
+def test_the_sweep_ends_where_the_grasp_is_sure(tmp_path: Path, sure_at: int | None) -> None:
     # grasps are planned at each of the sweep's waypoints, and the sweep
     # ends at the first whose best grasp reaches stop_confidence; that grid's grasps
     # are the final ones (not planned again).

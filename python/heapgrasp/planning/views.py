@@ -203,7 +203,6 @@ def fixed_waypoints(
     *,
     L: int = 3,
     circle_theta: float = math.pi / 5,
-    circle_closed: bool = True,
     phi0: float = 0.0,
     rng: np.random.Generator | None = None,
     hemisphere_radius: float = 0.5,
@@ -211,11 +210,11 @@ def fixed_waypoints(
     hemisphere_views: int = 6,
 ) -> F64:
     """Waypoints of the fixed-view baselines: ``"circle"`` (L evenly spaced at polar
-    angle ``circle_theta`` from azimuth ``phi0``, then back to the first when
-    ``circle_closed``: once around the scene) or ``"hemisphere6"`` (GraspNeRF; random
+    angle ``circle_theta`` from azimuth ``phi0``, then back to the first: once around the
+    scene, as Table II's 1.87 m needs) or ``"hemisphere6"`` (GraspNeRF; random
     azimuths from ``rng``, visited in increasing azimuth)."""
     if kind == "circle":
-        return circle_waypoints(sphere, L=L, theta=circle_theta, phi0=phi0, closed=circle_closed)
+        return circle_waypoints(sphere, L=L, theta=circle_theta, phi0=phi0, closed=True)
     if kind == "hemisphere6":
         return hemisphere_waypoints(
             rng if rng is not None else np.random.default_rng(0),
