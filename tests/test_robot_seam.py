@@ -183,3 +183,21 @@ def test_a_run_that_needs_a_missing_dependency_fails_before_any_scene(tmp_path: 
     argv = ["run", "--view-planner", "network", "--view-weights", str(missing)]
     assert main([*argv, "--out", str(out)]) == 2
     assert not out.exists()
+
+
+def test_the_loop_plans_for_the_robots_gripper() -> None:
+    import dataclasses
+
+    from heapgrasp.geometry.gripper import PANDA_HAND
+    from heapgrasp.planning.antipodal import AntipodalPlanner
+
+    robot = FakeRobot(FakeScene(BOXES))
+    narrow = dataclasses.replace(PANDA_HAND, max_opening=0.06)
+    robot.gripper.geometry = narrow
+    pipeline = build_pipeline(RunConfig(method="no-vp"), robot, segmenter=RedSegmenter())
+    planner = pipeline.grasp_planner
+    assert isinstance(planner, AntipodalPlanner)
+    assert planner.gripper == narrow and planner.max_opening == 0.06
+    planned = pipeline.plan()
+    assert planned.grasp is not None and planned.grasp.width <= 0.06
+    assert all(c.width <= 0.06 for c in pipeline.grasp_candidates())

@@ -5,9 +5,10 @@ Commands are grouped in subparsers, each group in its own module exposing
 parsed :class:`argparse.Namespace` and returning the exit status::
 
     heapgrasp run [options]                  simulated pick-and-place (HEAPGrasp, baselines)
+    heapgrasp show RUN_DIR                   a run's scene recorded for the Rerun viewer
     heapgrasp bench carve|world|sim|grasp    benchmarks
     heapgrasp sim capture                    frames of a seeded scene
-    heapgrasp critic data|train              the learned grasp critic
+    heapgrasp critic data|train|eval         the learned grasp critic
 """
 
 from __future__ import annotations

@@ -51,6 +51,7 @@ import numpy.typing as npt
 
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.grid import GridFrame
+from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
 from heapgrasp.geometry.motion import MotionLimits, ViewSphere, plan_waypoints, time_path
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.observe import PhaseObserver
@@ -220,7 +221,11 @@ class Pipeline:
         else:
             eps = getattr(self.grasp_planner, "epsilon", 0.8)
         cands = select_candidates(
-            volumes, epsilon=float(eps), sigma=float(sigma), nms_window=cfg.nms_window
+            volumes,
+            epsilon=float(eps),
+            sigma=float(sigma),
+            nms_window=cfg.nms_window,
+            max_width=self.robot.gripper.geometry.max_opening,
         )
         if self.failed_grasps and cfg.failed_grasp_radius > 0.0:
             failed = np.asarray(self.failed_grasps)
@@ -592,12 +597,13 @@ def net_device(config: RunConfig) -> str:
     return device
 
 
-def make_grasp_planner(config: RunConfig) -> GraspPlanner:
-    """The configured grasp planner (``antipodal`` or ``network``)."""
+def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND) -> GraspPlanner:
+    """The configured grasp planner (``antipodal`` or ``network``); the analytic one plans
+    for ``gripper`` (its shape and widest opening)."""
     if config.grasp_planner == "antipodal":
         from heapgrasp.planning.antipodal import AntipodalPlanner
 
-        return AntipodalPlanner()
+        return AntipodalPlanner(max_opening=gripper.max_opening, gripper=gripper)
     from heapgrasp.planning.grasp_network import NetworkGraspPlanner
 
     weights = _weights(config.grasp_weights, "grasp", "grasp_weights")
@@ -655,7 +661,9 @@ def build_pipeline(
     return Pipeline(
         config=config,
         robot=robot,
-        grasp_planner=grasp_planner if grasp_planner is not None else make_grasp_planner(config),
+        grasp_planner=grasp_planner
+        if grasp_planner is not None
+        else make_grasp_planner(config, robot.gripper.geometry),
         segmenter=segmenter,
         view_scorer=view_scorer,
         rng=np.random.default_rng(seed),
