@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import pytest
 from heapgrasp.loop.config import RunConfig
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
@@ -47,3 +48,10 @@ def test_every_setting_is_in_the_one_documented_table_with_its_default_and_sourc
             assert got == want, (key, default)
         assert key in RunConfig.field_names(group), (key, group)
         assert source == RunConfig.source(key), (key, source)
+
+
+def test_the_readme_example_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    readme = (DOCS.parent / "README.md").read_text()
+    code = readme.split("```python\n", 1)[1].split("```", 1)[0]
+    exec(compile(code, "README.md", "exec"), {})  # noqa: S102 - our own README
+    assert "voxels in the hull" in capsys.readouterr().out
