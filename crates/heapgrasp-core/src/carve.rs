@@ -37,7 +37,8 @@ impl PreparedFrame {
 const FRAME_PARALLEL_MAX_VOXELS: usize = 1 << 18;
 
 /// Adds the silhouettes `masks` (`poses.len()` camera-sized masks back to back) into the
-/// counts of `grid` (`segmented`, `visible`: flat R³ buffers).
+/// counts of `grid` (`segmented`, `visible`: flat R³ buffers), on as many threads as the
+/// work is worth (at most [`parallel::num_threads`]). Counts saturate at `u32::MAX`.
 ///
 /// # Errors
 /// [`Error::Shape`] when `masks` does not hold one camera-sized mask per pose; nothing is
@@ -49,6 +50,84 @@ pub(crate) fn carve(
     masks: &[u8],
     segmented: &mut [u32],
     visible: &mut [u32],
+) -> Result<()> {
+    let threads = parallel::threads_for(grid.voxel_count() * poses.len(), 1 << 18, usize::MAX);
+    let prep_threads = parallel::threads_for(masks.len(), 1 << 20, poses.len());
+    carve_split(
+        grid,
+        camera,
+        poses,
+        masks,
+        (segmented, visible),
+        threads,
+        prep_threads,
+    )
+}
+
+/// How [`carve_with_threads`] splits the work.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum CarvePlan {
+    /// One thread carves every frame over the whole grid.
+    Serial,
+    /// This many threads each carve a share of the frames into private counts, summed at
+    /// the end (small grids, at least as many frames as threads).
+    Frames(usize),
+    /// This many threads each carve every frame over a slab of the x axis.
+    Slabs(usize),
+}
+
+impl CarvePlan {
+    /// The split for `frames` frames over a grid of resolution `r` on `threads` threads.
+    pub(crate) fn new(r: usize, frames: usize, threads: usize) -> Self {
+        let voxels = r * r * r;
+        if threads <= 1 || frames == 0 {
+            Self::Serial
+        } else if voxels <= FRAME_PARALLEL_MAX_VOXELS && frames >= threads {
+            Self::Frames(threads)
+        } else if threads.min(r) > 1 {
+            Self::Slabs(threads.min(r))
+        } else {
+            Self::Serial
+        }
+    }
+}
+
+/// [`carve`] on exactly `threads` threads (`0` counts as 1; the slab path uses at most R
+/// of them). The counts do not depend on `threads`.
+///
+/// # Errors
+/// As [`carve`].
+pub(crate) fn carve_with_threads(
+    grid: &GridSpec,
+    camera: &PinholeCamera,
+    poses: &[Pose],
+    masks: &[u8],
+    segmented: &mut [u32],
+    visible: &mut [u32],
+    threads: usize,
+) -> Result<()> {
+    let prep_threads = parallel::threads_for(masks.len(), 1 << 20, poses.len());
+    carve_split(
+        grid,
+        camera,
+        poses,
+        masks,
+        (segmented, visible),
+        threads,
+        prep_threads.min(threads.max(1)),
+    )
+}
+
+/// [`carve`] with `threads` carving as [`CarvePlan`] says, the frames prepared on
+/// `prep_threads` threads when the plan is not frame-parallel.
+fn carve_split(
+    grid: &GridSpec,
+    camera: &PinholeCamera,
+    poses: &[Pose],
+    masks: &[u8],
+    (segmented, visible): (&mut [u32], &mut [u32]),
+    threads: usize,
+    prep_threads: usize,
 ) -> Result<()> {
     let px = camera.pixel_count();
     if masks.len() != poses.len() * px {
@@ -63,55 +142,71 @@ pub(crate) fn carve(
         return Ok(());
     }
     let voxels = grid.voxel_count();
-    let threads = parallel::threads_for(voxels * n, 1 << 18, usize::MAX);
+    let r = grid.resolution();
     let frame =
         |k: usize| PreparedFrame::new(grid, camera, &poses[k], &masks[k * px..(k + 1) * px]);
-    if voxels <= FRAME_PARALLEL_MAX_VOXELS && n >= threads && threads > 1 {
-        // The calling thread carves the first share of frames straight into the grid;
-        // each other thread into private counts, summed at the end. (Fresh buffers cost
-        // page faults, so only the extra threads allocate.)
-        let ranges = parallel::split_range(n, threads);
-        let partial = std::thread::scope(|s| {
-            let handles: Vec<_> = ranges[1..]
-                .iter()
-                .cloned()
-                .map(|range| {
-                    let frame = &frame;
-                    s.spawn(move || {
-                        let mut seg = vec![0u32; voxels];
-                        let mut vis = vec![0u32; voxels];
-                        let frames: Vec<_> = range.map(frame).collect();
-                        carve_slab(grid, 0..grid.resolution(), &frames, &mut seg, &mut vis);
-                        (seg, vis)
+    match CarvePlan::new(r, n, threads) {
+        CarvePlan::Frames(threads) => {
+            // The calling thread carves the first share of frames straight into the grid;
+            // each other thread into private counts, summed at the end. (Fresh buffers
+            // cost page faults, so only the extra threads allocate.)
+            let ranges = parallel::split_range(n, threads);
+            let partial = std::thread::scope(|s| {
+                let handles: Vec<_> = ranges[1..]
+                    .iter()
+                    .cloned()
+                    .map(|range| {
+                        let frame = &frame;
+                        s.spawn(move || {
+                            let mut seg = vec![0u32; voxels];
+                            let mut vis = vec![0u32; voxels];
+                            let frames: Vec<_> = range.map(frame).collect();
+                            carve_slab(grid, 0..r, &frames, &mut seg, &mut vis);
+                            (seg, vis)
+                        })
                     })
-                })
-                .collect();
-            let own: Vec<_> = ranges[0].clone().map(&frame).collect();
-            carve_slab(grid, 0..grid.resolution(), &own, segmented, visible);
-            handles
-                .into_iter()
-                .map(|h| match h.join() {
-                    Ok(v) => v,
-                    Err(payload) => std::panic::resume_unwind(payload),
-                })
-                .collect::<Vec<_>>()
-        });
-        for (seg, vis) in partial {
-            segmented.iter_mut().zip(&seg).for_each(|(d, s)| *d += s);
-            visible.iter_mut().zip(&vis).for_each(|(d, s)| *d += s);
+                    .collect();
+                let own: Vec<_> = ranges[0].clone().map(&frame).collect();
+                carve_slab(grid, 0..r, &own, segmented, visible);
+                handles
+                    .into_iter()
+                    .map(|h| match h.join() {
+                        Ok(v) => v,
+                        Err(payload) => std::panic::resume_unwind(payload),
+                    })
+                    .collect::<Vec<_>>()
+            });
+            // Every addend is non-negative, so the saturated total is min(MAX, sum) in
+            // any order: the same counts as one thread.
+            for (seg, vis) in partial {
+                segmented
+                    .iter_mut()
+                    .zip(&seg)
+                    .for_each(|(d, s)| *d = d.saturating_add(*s));
+                visible
+                    .iter_mut()
+                    .zip(&vis)
+                    .for_each(|(d, s)| *d = d.saturating_add(*s));
+            }
         }
-    } else {
-        let prep_threads = parallel::threads_for(masks.len(), 1 << 20, n);
-        let frames: Vec<_> =
-            parallel::map_ranges(n, prep_threads, |r| r.map(frame).collect::<Vec<_>>())
-                .into_iter()
-                .flatten()
-                .collect();
-        let r = grid.resolution();
-        let slabs = threads.min(r);
-        parallel::for_each_row_chunk_pair(segmented, visible, r * r, slabs, |rows, seg, vis| {
-            carve_slab(grid, rows, &frames, seg, vis)
-        });
+        plan => {
+            let slabs = match plan {
+                CarvePlan::Slabs(k) => k,
+                _ => 1,
+            };
+            let frames: Vec<_> =
+                parallel::map_ranges(n, prep_threads, |r| r.map(frame).collect::<Vec<_>>())
+                    .into_iter()
+                    .flatten()
+                    .collect();
+            parallel::for_each_row_chunk_pair(
+                segmented,
+                visible,
+                r * r,
+                slabs,
+                |rows, seg, vis| carve_slab(grid, rows, &frames, seg, vis),
+            );
+        }
     }
     Ok(())
 }
@@ -145,7 +240,8 @@ pub(crate) fn carve_columns(
         let (a, b, len) = (a as usize, b as usize, len as usize);
         let off = (a * r + b) * r;
         let col = frame.projector.column(a, b);
-        carve_column(
+        carve_column_at(
+            Kernel::selected(),
             &col,
             &frame.projector.intr,
             &frame.words,
@@ -163,6 +259,19 @@ fn carve_slab(
     seg: &mut [u32],
     vis: &mut [u32],
 ) {
+    carve_slab_at(Kernel::selected(), grid, rows, frames, seg, vis);
+}
+
+/// [`carve_slab`] with the column loop of `kernel`.
+#[inline]
+fn carve_slab_at(
+    kernel: Kernel,
+    grid: &GridSpec,
+    rows: std::ops::Range<usize>,
+    frames: &[PreparedFrame],
+    seg: &mut [u32],
+    vis: &mut [u32],
+) {
     let r = grid.resolution();
     for (local, a) in rows.enumerate() {
         for b in 0..r {
@@ -171,13 +280,14 @@ fn carve_slab(
             let vis_col = &mut vis[off..off + r];
             for f in frames {
                 let col = f.projector.column(a, b);
-                carve_column(&col, &f.projector.intr, &f.words, seg_col, vis_col);
+                carve_column_at(kernel, &col, &f.projector.intr, &f.words, seg_col, vis_col);
             }
         }
     }
 }
 
-/// The inner loop over one column: vectorisable, branch-free.
+/// The inner loop over one column: vectorisable, branch-free. Counts saturate at
+/// `u32::MAX` (a segmented voxel adds to both counts, so `seg <= vis` still holds).
 #[inline(always)]
 fn carve_column_generic(
     col: &Column,
@@ -195,14 +305,15 @@ fn carve_column_generic(
         let z = col.base[2] + cf * col.step[2];
         let (inside, idx) = intr.pixel_masked(x, y, z);
         let inside = u32::from(inside);
-        vis[c] += inside;
-        seg[c] += mask_bit(words, idx) & inside;
+        vis[c] = vis[c].saturating_add(inside);
+        seg[c] = seg[c].saturating_add(mask_bit(words, idx) & inside);
     }
 }
 
 /// AVX-512 column loop: 16 voxels per step, a masked gather from the packed mask, and
 /// `rcp14` refined by one Newton step in place of a divide (relative error ~1e-7, inside
-/// the tolerance documented in [`crate::projector`]).
+/// the tolerance documented in [`crate::projector`]). Counts saturate at `u32::MAX` like
+/// [`carve_column_generic`]'s.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,bmi2")]
 fn carve_column_avx512(
@@ -274,12 +385,11 @@ fn carve_column_avx512(
             let sp = seg.as_mut_ptr().add(c0);
             let v_old = _mm512_maskz_loadu_epi32(live, vp.cast());
             let s_old = _mm512_maskz_loadu_epi32(live, sp.cast());
-            _mm512_mask_storeu_epi32(
-                vp.cast(),
-                live,
-                _mm512_mask_add_epi32(v_old, inside, v_old, one),
-            );
-            _mm512_mask_storeu_epi32(sp.cast(), live, _mm512_add_epi32(s_old, bit));
+            // Adding 0 or 1 wraps only MAX, to 0: the unsigned max keeps MAX there.
+            let v_new = _mm512_mask_add_epi32(v_old, inside, v_old, one);
+            let s_new = _mm512_add_epi32(s_old, bit);
+            _mm512_mask_storeu_epi32(vp.cast(), live, _mm512_max_epu32(v_new, v_old));
+            _mm512_mask_storeu_epi32(sp.cast(), live, _mm512_max_epu32(s_new, s_old));
         }
         c0 += 16;
     }
@@ -308,7 +418,8 @@ pub enum KernelLevel {
     Baseline,
 }
 
-/// The kernel build selected at run time (cached).
+/// The kernel build selected at run time (cached): [`cpu_kernel_level`], or `Baseline`
+/// when `HEAPGRASP_NO_SIMD` is set.
 pub fn kernel_level() -> KernelLevel {
     use std::sync::OnceLock;
     static LEVEL: OnceLock<KernelLevel> = OnceLock::new();
@@ -316,43 +427,344 @@ pub fn kernel_level() -> KernelLevel {
         if std::env::var_os("HEAPGRASP_NO_SIMD").is_some() {
             return KernelLevel::Baseline;
         }
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx512f")
-                && std::arch::is_x86_feature_detected!("avx512bw")
-                && std::arch::is_x86_feature_detected!("avx512vl")
-                && std::arch::is_x86_feature_detected!("avx512dq")
-                && std::arch::is_x86_feature_detected!("fma")
-                && std::arch::is_x86_feature_detected!("bmi2")
-            {
-                return KernelLevel::Avx512;
-            }
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-                && std::arch::is_x86_feature_detected!("bmi2")
-            {
-                return KernelLevel::Avx2;
-            }
-        }
-        KernelLevel::Baseline
+        cpu_kernel_level()
     })
 }
 
+/// The best kernel build this CPU supports, whatever the environment says.
+pub fn cpu_kernel_level() -> KernelLevel {
+    if has_avx512() {
+        KernelLevel::Avx512
+    } else if has_avx2() {
+        KernelLevel::Avx2
+    } else {
+        KernelLevel::Baseline
+    }
+}
+
+/// Whether the CPU has every feature `carve_column_avx512` is built with.
+#[cfg(target_arch = "x86_64")]
+fn has_avx512() -> bool {
+    std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512bw")
+        && std::arch::is_x86_feature_detected!("avx512vl")
+        && std::arch::is_x86_feature_detected!("avx512dq")
+        && std::arch::is_x86_feature_detected!("avx2")
+        && std::arch::is_x86_feature_detected!("fma")
+        && std::arch::is_x86_feature_detected!("bmi2")
+}
+
+/// Whether the CPU has every feature `carve_column_avx2` is built with.
+#[cfg(target_arch = "x86_64")]
+fn has_avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+        && std::arch::is_x86_feature_detected!("fma")
+        && std::arch::is_x86_feature_detected!("bmi2")
+}
+
+/// No x86 SIMD build off x86-64.
+#[cfg(not(target_arch = "x86_64"))]
+fn has_avx512() -> bool {
+    false
+}
+
+/// No x86 SIMD build off x86-64.
+#[cfg(not(target_arch = "x86_64"))]
+fn has_avx2() -> bool {
+    false
+}
+
+/// A build of the column loop that this CPU supports: only [`Kernel::selected`] and
+/// [`Kernel::supported`] make one, so running it is sound.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Kernel(KernelLevel);
+
+impl Kernel {
+    /// The build [`kernel_level`] selects.
+    fn selected() -> Self {
+        Self(kernel_level())
+    }
+
+    /// The build `level`, if this CPU can run it.
+    #[cfg_attr(not(test), allow(dead_code))]
+    fn supported(level: KernelLevel) -> Option<Self> {
+        let ok = match level {
+            KernelLevel::Avx512 => has_avx512(),
+            KernelLevel::Avx2 => has_avx2(),
+            KernelLevel::Baseline => true,
+        };
+        ok.then_some(Self(level))
+    }
+}
+
+/// One frame over one column with the column loop of `kernel`.
 #[inline]
-fn carve_column(
+fn carve_column_at(
+    kernel: Kernel,
     col: &Column,
     intr: &Intrinsics32,
     words: &[u32],
     seg: &mut [u32],
     vis: &mut [u32],
 ) {
-    match kernel_level() {
+    match kernel.0 {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: kernel_level() returns Avx512 only when the CPU has every enabled feature.
+        // SAFETY: a Kernel holds Avx512 only when the CPU has every enabled feature.
         KernelLevel::Avx512 => unsafe { carve_column_avx512(col, intr, words, seg, vis) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as above, for the AVX2 feature set.
         KernelLevel::Avx2 => unsafe { carve_column_avx2(col, intr, words, seg, vis) },
         _ => carve_column_generic(col, intr, words, seg, vis),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The column loops against each other and against an f64 scalar reference, and the
+    //! threaded paths against one thread, on random grids, cameras, poses, masks and
+    //! starting counts (some at the top of the u32 range, to check the saturation).
+
+    // Test code: generators build known-valid values.
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Random inputs: the frames, and starting counts (`seg <= vis`).
+    #[derive(Debug)]
+    struct Case {
+        grid: GridSpec,
+        camera: PinholeCamera,
+        poses: Vec<Pose>,
+        masks: Vec<u8>,
+        seg: Vec<u32>,
+        vis: Vec<u32>,
+    }
+
+    fn xorshift(x: &mut u64) -> u64 {
+        *x ^= *x << 13;
+        *x ^= *x >> 7;
+        *x ^= *x << 17;
+        *x
+    }
+
+    prop_compose! {
+        fn camera()(w in 1u32..64, h in 1u32..48, f in 5.0f64..150.0, aspect in 0.7f64..1.4,
+                    cx in -10.0f64..70.0, cy in -10.0f64..55.0) -> PinholeCamera {
+            PinholeCamera::new(w, h, f, f * aspect, cx, cy).unwrap()
+        }
+    }
+
+    prop_compose! {
+        /// Resolutions 1..=40 cover every tail length of the 16-lane AVX-512 loop.
+        fn grid()(ox in -0.3f64..0.3, oy in -0.3f64..0.3, oz in -0.3f64..0.3,
+                  size in 0.05f64..0.6, r in 1usize..=40) -> GridSpec {
+            GridSpec::new([ox, oy, oz], size, r).unwrap()
+        }
+    }
+
+    prop_compose! {
+        /// Any eye (also inside the grid, with voxels behind the camera), any target and
+        /// roll.
+        fn pose()(eye in prop::array::uniform3(-1.0f64..1.0),
+                  target in prop::array::uniform3(-0.4f64..0.4),
+                  up in prop::array::uniform3(-1.0f64..1.0)) -> Pose {
+            Pose::look_at(eye, target, up).unwrap_or_else(|_| Pose::identity())
+        }
+    }
+
+    prop_compose! {
+        fn case()(grid in grid(), camera in camera(),
+                  poses in prop::collection::vec(pose(), 1..6),
+                  density in 0u64..=4, counts in 0u8..4, seed in any::<u64>()) -> Case {
+            let mut x = seed | 1;
+            let masks = (0..poses.len() * camera.pixel_count())
+                .map(|_| u8::from(xorshift(&mut x) % 4 < density))
+                .collect();
+            let n = grid.voxel_count();
+            let (mut seg, mut vis) = (vec![0u32; n], vec![0u32; n]);
+            for i in 0..n {
+                let v = match counts {
+                    0 => 0,
+                    1 => (xorshift(&mut x) % 8) as u32,
+                    // At or just below the top: the frames push some voxels over it.
+                    _ => u32::MAX - (xorshift(&mut x) % 8) as u32,
+                };
+                let s = v - (xorshift(&mut x) % (u64::from(v.min(3)) + 1)) as u32;
+                (seg[i], vis[i]) = (s, v);
+            }
+            Case { grid, camera, poses, masks, seg, vis }
+        }
+    }
+
+    /// Counts of `case` after carving all its frames over the whole grid with `kernel`.
+    fn carve_with(kernel: Kernel, case: &Case) -> Counts {
+        let px = case.camera.pixel_count();
+        let frames: Vec<_> = (0..case.poses.len())
+            .map(|k| {
+                let mask = &case.masks[k * px..(k + 1) * px];
+                PreparedFrame::new(&case.grid, &case.camera, &case.poses[k], mask)
+            })
+            .collect();
+        let (mut seg, mut vis) = (case.seg.clone(), case.vis.clone());
+        let r = case.grid.resolution();
+        carve_slab_at(kernel, &case.grid, 0..r, &frames, &mut seg, &mut vis);
+        (seg, vis)
+    }
+
+    /// The f64 reference (the projection of [`PinholeCamera::project`], saturating
+    /// adds), and per voxel whether some frame puts its centre so close to a pixel border
+    /// (or to the image plane) that f32 kernels may round it to the other side.
+    fn reference(case: &Case) -> (Vec<u32>, Vec<u32>, Vec<bool>) {
+        let (grid, cam) = (&case.grid, &case.camera);
+        let (mut seg, mut vis) = (case.seg.clone(), case.vis.clone());
+        let mut tie = vec![false; grid.voxel_count()];
+        let px = cam.pixel_count();
+        for (k, pose) in case.poses.iter().enumerate() {
+            let w2c = pose.inverse();
+            let mask = &case.masks[k * px..(k + 1) * px];
+            for i in 0..grid.voxel_count() {
+                let [a, b, c] = grid.unflatten(i);
+                let p = w2c.transform_point(&grid.voxel_center(a, b, c));
+                let scale = p.x.abs() + p.y.abs() + p.z.abs() + 1.0;
+                if p.z.abs() < 1e-4 * scale {
+                    tie[i] = true;
+                    continue;
+                }
+                if p.z > 0.0 {
+                    let uf = cam.fx * p.x / p.z + cam.cx + 0.5;
+                    let vf = cam.fy * p.y / p.z + cam.cy + 0.5;
+                    // f32 rounding of the coordinates and of 1/z, scaled to pixels.
+                    let tol =
+                        1e-4 + 4e-6 * (cam.fx.max(cam.fy) * scale / p.z + uf.abs() + vf.abs());
+                    let near = |f: f64| (f - f.round()).abs() < tol;
+                    if near(uf) || near(vf) {
+                        tie[i] = true;
+                    }
+                }
+                if let Some((u, v)) = cam.project(&p) {
+                    vis[i] = vis[i].saturating_add(1);
+                    let set = mask[(v * cam.width + u) as usize] != 0;
+                    seg[i] = seg[i].saturating_add(u32::from(set));
+                }
+            }
+        }
+        (seg, vis, tie)
+    }
+
+    /// `(segmented, visible)` of every voxel.
+    type Counts = (Vec<u32>, Vec<u32>);
+
+    /// Up to 5 voxels where two count pairs differ, tie voxels left out, as `(voxel,
+    /// (seg, vis) of x, (seg, vis) of y)`.
+    fn differing(x: &Counts, y: &Counts, tie: &[bool]) -> Vec<(usize, [u32; 2], [u32; 2])> {
+        (0..tie.len())
+            .filter(|&i| !tie[i] && (x.0[i] != y.0[i] || x.1[i] != y.1[i]))
+            .map(|i| (i, [x.0[i], x.1[i]], [y.0[i], y.1[i]]))
+            .take(5)
+            .collect()
+    }
+
+    fn announce_avx512_skip() {
+        use std::sync::Once;
+        static ONCE: Once = Once::new();
+        ONCE.call_once(|| {
+            eprintln!(
+                "carve: this CPU lacks AVX-512 (F, BW, VL, DQ with AVX2, FMA, BMI2): the \
+                 AVX-512-vs-portable comparison is skipped; portable-vs-scalar still runs"
+            );
+        });
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+
+        #[test]
+        fn simd_and_portable_kernels_agree_with_the_scalar_reference(case in case()) {
+            let (rseg, rvis, tie) = reference(&case);
+            let reference = (rseg, rvis);
+            let portable = carve_with(Kernel::supported(KernelLevel::Baseline).unwrap(), &case);
+            let bad = differing(&portable, &reference, &tie);
+            prop_assert!(bad.is_empty(), "portable vs scalar (voxel, portable, scalar): {bad:?}");
+            for i in 0..tie.len() {
+                prop_assert!(portable.0[i] <= portable.1[i], "segmented > visible at {i}");
+            }
+            match Kernel::supported(KernelLevel::Avx512) {
+                Some(k) => {
+                    let avx512 = carve_with(k, &case);
+                    let bad = differing(&avx512, &portable, &tie);
+                    prop_assert!(bad.is_empty(), "AVX-512 vs portable (voxel, avx512, portable): {bad:?}");
+                }
+                None => announce_avx512_skip(),
+            }
+            if let Some(k) = Kernel::supported(KernelLevel::Avx2) {
+                // The portable loop built with AVX2 enabled: the same arithmetic.
+                prop_assert_eq!(carve_with(k, &case), portable);
+            }
+        }
+
+        #[test]
+        fn thread_count_does_not_change_the_counts(case in case(), threads in 2usize..7) {
+            let run = |threads: usize| {
+                let (mut seg, mut vis) = (case.seg.clone(), case.vis.clone());
+                carve_with_threads(
+                    &case.grid, &case.camera, &case.poses, &case.masks, &mut seg, &mut vis, threads,
+                )
+                .unwrap();
+                (seg, vis)
+            };
+            prop_assert_eq!(run(threads), run(1));
+        }
+    }
+
+    #[test]
+    fn plans_split_as_documented() {
+        // A small grid with at least as many frames as threads: frame-parallel.
+        assert_eq!(CarvePlan::new(48, 3, 3), CarvePlan::Frames(3));
+        assert_eq!(CarvePlan::new(48, 6, 2), CarvePlan::Frames(2));
+        // Fewer frames than threads, or more than 2^18 voxels: slabs, at most R.
+        assert_eq!(CarvePlan::new(48, 3, 4), CarvePlan::Slabs(4));
+        assert_eq!(CarvePlan::new(65, 30, 2), CarvePlan::Slabs(2));
+        assert_eq!(CarvePlan::new(3, 1, 8), CarvePlan::Slabs(3));
+        // One thread, one voxel per axis or no frames: serial.
+        assert_eq!(CarvePlan::new(48, 3, 1), CarvePlan::Serial);
+        assert_eq!(CarvePlan::new(48, 3, 0), CarvePlan::Serial);
+        assert_eq!(CarvePlan::new(1, 1, 4), CarvePlan::Serial);
+        assert_eq!(CarvePlan::new(48, 0, 4), CarvePlan::Serial);
+    }
+
+    #[test]
+    fn large_grids_carve_the_same_in_slabs() {
+        // 65³ > 2^18 voxels: the slab path even with more frames than threads.
+        let grid = GridSpec::new([-0.15, -0.15, 0.0], 0.3, 65).unwrap();
+        let camera = PinholeCamera::new(40, 30, 45.0, 47.0, 19.3, 14.6).unwrap();
+        let poses: Vec<Pose> = (0..3)
+            .map(|k| {
+                let a = 0.1 + 2.1 * k as f64;
+                Pose::look_at(
+                    [0.7 * a.cos(), 0.7 * a.sin(), 0.35],
+                    [0.0, 0.0, 0.15],
+                    [0.0, 0.0, 1.0],
+                )
+                .unwrap()
+            })
+            .collect();
+        let mut x = 7u64;
+        let masks: Vec<u8> = (0..3 * camera.pixel_count())
+            .map(|_| u8::from(xorshift(&mut x).is_multiple_of(2)))
+            .collect();
+        let n = grid.voxel_count();
+        let run = |threads: usize| {
+            let (mut seg, mut vis) = (vec![0u32; n], vec![0u32; n]);
+            carve_with_threads(&grid, &camera, &poses, &masks, &mut seg, &mut vis, threads)
+                .unwrap();
+            (seg, vis)
+        };
+        let one = run(1);
+        assert!(one.1.iter().filter(|&&v| v > 0).count() > n / 10);
+        for threads in [2, 3, 4] {
+            assert_eq!(CarvePlan::new(65, 3, threads), CarvePlan::Slabs(threads));
+            assert!(run(threads) == one, "{threads} threads");
+        }
     }
 }

@@ -4,11 +4,12 @@
 //! The grid keeps, per voxel, the number of frames in which the voxel centre was
 //! *segmented* (`|I_seg|`) and *visible* (`|I_rgb|`, projected inside the image).
 //! Occupancy is `segmented / visible` where `visible > 0`, else 0 (eq. 10), computed in
-//! f32. A voxel is *high-confidence* for threshold λ when its occupancy is non-zero and
+//! f32. Counts saturate at `u32::MAX` instead of wrapping, so a voxel seen in every one
+//! of more frames than that keeps occupancy 1. A voxel is *high-confidence* for threshold λ when its occupancy is non-zero and
 //! `>= λ` (both sides in f32): that is the set `Ŝ_{≥λ}` counts in eq. 14.
 
 use crate::camera::{PinholeCamera, Pose};
-use crate::carve::carve;
+use crate::carve::{carve, carve_with_threads};
 use crate::error::{Error, Result};
 use crate::grid::GridSpec;
 
@@ -158,6 +159,7 @@ impl OccupancyGrid {
 
     /// Integrates `poses.len()` silhouettes stored back to back in `masks`
     /// (`(N, height, width)` bytes). All frames are validated before any count changes.
+    /// Counts saturate at `u32::MAX`.
     ///
     /// # Errors
     /// [`Error::Shape`] when `masks` does not hold one camera-sized mask per pose.
@@ -174,6 +176,31 @@ impl OccupancyGrid {
             masks,
             &mut self.segmented,
             &mut self.visible,
+        )
+    }
+
+    /// [`OccupancyGrid::integrate_many`] on exactly `threads` threads (0 counts as 1)
+    /// rather than as many as the work is worth: frame-parallel when the grid has at most
+    /// 2¹⁸ voxels and there are at least `threads` frames, else in at most R slabs of the
+    /// x axis. The counts do not depend on `threads`.
+    ///
+    /// # Errors
+    /// As [`OccupancyGrid::integrate_many`].
+    pub fn integrate_many_with_threads(
+        &mut self,
+        camera: &PinholeCamera,
+        poses: &[Pose],
+        masks: &[u8],
+        threads: usize,
+    ) -> Result<()> {
+        carve_with_threads(
+            &self.spec,
+            camera,
+            poses,
+            masks,
+            &mut self.segmented,
+            &mut self.visible,
+            threads,
         )
     }
 
@@ -280,6 +307,55 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn counts_saturate_instead_of_wrapping() {
+        let (grid, cam, _) = setup();
+        // Looking down from beside the grid's centre: it sees part of the grid.
+        let m = [
+            1.0, 0.0, 0.0, 0.2, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.8, 0.0, 0.0, 0.0, 1.0,
+        ];
+        let pose = Pose::from_row_major("cam2world", &m).unwrap();
+        let n = grid.voxel_count();
+        let full = vec![1u8; cam.pixel_count()];
+        let empty = vec![0u8; cam.pixel_count()];
+        // Three frames that see and segment every visible voxel, then one that sees
+        // without segmenting: from MAX - 1 the counts must stop at MAX.
+        let poses = [pose; 4];
+        let masks = [full.clone(), full.clone(), full.clone(), empty].concat();
+        let mut fresh = OccupancyGrid::new(grid);
+        fresh.integrate_many(&cam, &poses, &masks).unwrap();
+        let seen: Vec<bool> = fresh.visible().iter().map(|&v| v > 0).collect();
+        assert!(seen.iter().any(|&s| s) && !seen.iter().all(|&s| s));
+        for threads in [1, 2, 3, 4, 5] {
+            for start in [u32::MAX, u32::MAX - 1, u32::MAX - 3] {
+                let mut occ =
+                    OccupancyGrid::from_counts(grid, vec![start; n], vec![start; n]).unwrap();
+                occ.integrate_many_with_threads(&cam, &poses, &masks, threads)
+                    .unwrap();
+                for (i, &seen) in seen.iter().enumerate() {
+                    let (s, v) = (occ.segmented()[i], occ.visible()[i]);
+                    if seen {
+                        assert_eq!(v, u32::MAX, "threads {threads} start {start}");
+                        assert_eq!(s, start.saturating_add(3), "threads {threads}");
+                    } else {
+                        assert_eq!((s, v), (start, start));
+                    }
+                }
+                assert!(
+                    occ.occupancy().iter().all(|&o| o == 1.0),
+                    "threads {threads}"
+                );
+                assert_eq!(occ.count_high_confidence(1.0), n);
+            }
+        }
+        // One frame at a time takes the same path as the kernels of a batch.
+        let mut occ =
+            OccupancyGrid::from_counts(grid, vec![u32::MAX; n], vec![u32::MAX; n]).unwrap();
+        occ.integrate(&cam, &pose, &full).unwrap();
+        assert!(occ.segmented().iter().all(|&s| s == u32::MAX));
+        assert!(occ.occupancy().iter().all(|&o| o == 1.0));
     }
 
     #[test]

@@ -223,4 +223,25 @@ mod tests {
         assert_eq!(mask_bit(&words, 69), 1);
         assert_eq!(mask_bit(&words, 68), 0);
     }
+
+    #[test]
+    fn dispatched_pack_mask_equals_the_portable_one() {
+        // (With AVX-512 the dispatched pack takes 64 bytes a step, then the portable tail.)
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        for len in 0usize..300 {
+            let mask: Vec<u8> = (0..len)
+                .map(|_| {
+                    x ^= x << 13;
+                    x ^= x >> 7;
+                    x ^= x << 17;
+                    // Any nonzero byte is set, 0x80 and 0xff included.
+                    [0u8, 1, 0x80, 0xff][(x % 4) as usize]
+                })
+                .collect();
+            let (mut dispatched, mut portable) = (Vec::new(), vec![0; len.div_ceil(32)]);
+            pack_mask(&mask, &mut dispatched);
+            pack_mask_generic(&mask, &mut portable);
+            assert_eq!(dispatched, portable, "{len} bytes");
+        }
+    }
 }
