@@ -144,6 +144,39 @@ def test_integrate_many_shape_errors(used_grid, camera):
     assert_unchanged(grid, before)
 
 
+@pytest.mark.parametrize("dtype", [bool, np.uint8])
+def test_strided_masks_are_reported_as_not_contiguous(used_grid, camera, box_scene, dtype):
+    """A strided mask of the right dtype is refused for its layout, not its dtype."""
+    grid, before = used_grid
+    match = r"mask: array must be C-contiguous"
+    with pytest.raises(hg.ShapeError, match=match):
+        grid.integrate(np.zeros((H, 2 * W), dtype)[:, ::2], camera, good_pose())
+    with pytest.raises(hg.ShapeError, match="masks: array must be C-contiguous"):
+        grid.integrate_many(
+            np.ones((3, H, 2 * W), dtype)[:, :, ::2], camera, np.stack([good_pose()] * 3)
+        )
+    with pytest.raises(hg.ShapeError, match="mask: array must be C-contiguous"):
+        grid.integrate(np.asfortranarray(np.zeros((H, W), dtype)), camera, good_pose())
+    r = grid.resolution
+    region = np.ones((r, r, 2 * r), dtype)[:, :, ::2]
+    scene, _ = box_scene
+    with pytest.raises(hg.ShapeError, match="region: array must be C-contiguous"):
+        hg.score_views(grid, scene, camera, [good_pose()[None]], region=region)
+    # Wrong ndim is reported as such for bool too, not as a dtype mismatch.
+    with pytest.raises(hg.ShapeError, match=r"mask: expected a 2-D array"):
+        grid.integrate(np.zeros((1, H, W), dtype), camera, good_pose())
+    assert_unchanged(grid, before)
+
+
+@pytest.mark.parametrize("dtype", [np.int64, np.int32])
+def test_strided_faces_are_reported_as_not_contiguous(dtype):
+    v, f = ref.box_mesh((0.1, 0.1, 0.1))
+    strided = np.repeat(f.astype(dtype), 2, axis=0)[::2]
+    np.testing.assert_array_equal(strided, f)
+    with pytest.raises(hg.ShapeError, match="faces: array must be C-contiguous"):
+        hg.MeshScene().add_mesh(v, strided, np.eye(4))
+
+
 @pytest.mark.parametrize("size", [0.0, -0.3, np.nan, np.inf])
 def test_bad_grid_size(size):
     with raises(hg.InvalidValueError, "size"):

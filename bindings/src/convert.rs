@@ -107,15 +107,19 @@ impl MaskArg<'_> {
     }
 }
 
-/// Borrows a bool or uint8 mask array with `ndim` dimensions.
+/// Whether `obj` is a NumPy array of dtype `T` (whatever its shape and layout).
+pub fn has_dtype<T: Element>(obj: &Bound<'_, PyAny>) -> bool {
+    obj.cast::<PyArrayDyn<T>>().is_ok()
+}
+
+/// Borrows a bool or uint8 mask array with `ndim` dimensions. The dtype picks the branch
+/// first, so a bool array of the wrong shape or layout is reported as such (not as a
+/// dtype mismatch).
 pub fn mask_arg<'py>(obj: &Bound<'py, PyAny>, name: &str, ndim: usize) -> PyResult<MaskArg<'py>> {
-    if let Ok(a) = array_arg::<bool>(obj, name, "bool", Some(ndim)) {
-        return Ok(MaskArg::Bool(a));
+    if has_dtype::<bool>(obj) {
+        return array_arg::<bool>(obj, name, "bool", Some(ndim)).map(MaskArg::Bool);
     }
-    match array_arg::<u8>(obj, name, "bool or uint8", Some(ndim)) {
-        Ok(a) => Ok(MaskArg::U8(a)),
-        Err(e) => Err(e),
-    }
+    array_arg::<u8>(obj, name, "bool or uint8", Some(ndim)).map(MaskArg::U8)
 }
 
 /// Checks that a shape's trailing dimensions equal `tail`.

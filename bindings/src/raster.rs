@@ -5,7 +5,7 @@ use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 
 use crate::camera::PyPinholeCamera;
-use crate::convert::{array_arg, check_tail, pose_arg, vec3_arg};
+use crate::convert::{array_arg, check_tail, has_dtype, pose_arg, vec3_arg};
 use crate::errors::{IntoPyResult, MeshError, UnknownMeshError};
 
 /// Rigid triangle meshes with world poses: ground-truth silhouettes, depth and labels.
@@ -41,11 +41,14 @@ fn faces_arg(faces: &Bound<'_, PyAny>) -> PyResult<Vec<u32>> {
             })
             .collect()
     }
-    if let Ok(f) = array_arg::<i64>(faces, "faces", "int64", Some(2)) {
+    // The dtype picks the branch, so a wrong shape or layout is reported as such.
+    if has_dtype::<i64>(faces) {
+        let f = array_arg::<i64>(faces, "faces", "int64", Some(2))?;
         check_tail("faces", &f.shape, &[3], "(F, 3)")?;
         return convert(f.as_slice(), |x| u32::try_from(x).ok());
     }
-    if let Ok(f) = array_arg::<i32>(faces, "faces", "int32", Some(2)) {
+    if has_dtype::<i32>(faces) {
+        let f = array_arg::<i32>(faces, "faces", "int32", Some(2))?;
         check_tail("faces", &f.shape, &[3], "(F, 3)")?;
         return convert(f.as_slice(), |x| u32::try_from(x).ok());
     }
