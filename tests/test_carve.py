@@ -136,10 +136,62 @@ def test_full_mask_full_view_occupancy_one(camera):
     assert g.count_high_confidence(1.0) == 6**3
 
 
-def test_large_grid_matches_reference(camera, poses, rng):
-    """A grid big enough for the multi-threaded slab path."""
-    res = 48
+# (resolution, threads) for 3 frames: 66^3 > 2^18 voxels takes the slab path (one x slab
+# per thread) whatever the frame count; 48^3 does with more threads than frames, and is
+# frame-parallel (private counts per thread, summed) with at most as many.
+@pytest.mark.parametrize(
+    "res,threads",
+    [(66, 2), (66, 4), (48, 4), (48, 3), (48, 1), (66, None)],
+    ids=["slabs2", "slabs4", "slabs4-small", "frames3", "one", "auto"],
+)
+def test_large_grid_matches_reference(camera, poses, rng, res, threads):
+    """A grid big enough for the multi-threaded slab path, on explicit thread counts."""
     g = hg.OccupancyGrid(GRID_ORIGIN, GRID_SIZE, res)
     masks = random_masks(rng, 3, camera)
-    g.integrate_many(masks, camera, poses[:3])
-    assert_counts_match(g, masks, camera, poses[:3])
+    g.integrate_many(masks, camera, poses[:3], threads=threads)
+    _, rvis, _ = assert_counts_match(g, masks, camera, poses[:3])
+    assert np.count_nonzero(rvis) > rvis.size // 10
+
+
+def test_thread_count_does_not_change_the_counts(camera, poses, rng):
+    masks = random_masks(rng, len(poses), camera)
+    counts = []
+    for threads in [1, 2, 3, 5, 6, 7, 16]:
+        g = hg.OccupancyGrid(GRID_ORIGIN, GRID_SIZE, 20)
+        g.integrate_many(masks, camera, poses, threads=threads)
+        counts.append(g.counts())
+    for seg, vis in counts[1:]:
+        np.testing.assert_array_equal(seg, counts[0][0])
+        np.testing.assert_array_equal(vis, counts[0][1])
+
+
+U32_MAX = np.iinfo(np.uint32).max
+
+
+@pytest.mark.parametrize("threads", [None, 1, 2, 4])
+@pytest.mark.parametrize("start", [U32_MAX, U32_MAX - 1, U32_MAX - 4])
+def test_counts_saturate_at_the_u32_limit(camera, poses, start, threads):
+    """Counts near 2**32 - 1 stop there: occupancy 1 stays 1 rather than wrapping to 0."""
+    # Twice the usual cube: the ring of views leaves part of it unseen.
+    res, size = 12, 2 * GRID_SIZE
+    full = np.full((res, res, res), start, np.uint32)
+    g = hg.OccupancyGrid.from_counts(GRID_ORIGIN, size, full, full)
+    fresh = hg.OccupancyGrid(GRID_ORIGIN, size, res)
+    ones = np.ones((len(poses), camera.height, camera.width), bool)
+    for grid in (g, fresh):
+        grid.integrate_many(ones, camera, poses, threads=threads)
+        grid.integrate(ones[0], camera, poses[0])
+    added = fresh.counts()[1].astype(np.int64)
+    expected = np.minimum(start + added, U32_MAX)
+    assert (added == 0).any() and (expected == U32_MAX).any()
+    seg, vis = g.counts()
+    np.testing.assert_array_equal(vis, expected)
+    np.testing.assert_array_equal(seg, expected)
+    np.testing.assert_array_equal(g.occupancy(), np.ones_like(g.occupancy()))
+    assert g.count_high_confidence(1.0) == res**3
+    # A frame that sees without segmenting: visible stays at the top, segmented never
+    # passes it.
+    g.integrate(np.zeros((camera.height, camera.width), bool), camera, poses[1])
+    seg, vis = g.counts()
+    np.testing.assert_array_equal(vis[expected == U32_MAX], U32_MAX)
+    assert (seg <= vis).all()

@@ -177,6 +177,14 @@ def test_strided_faces_are_reported_as_not_contiguous(dtype):
         hg.MeshScene().add_mesh(v, strided, np.eye(4))
 
 
+@pytest.mark.parametrize("threads", [0, -1, 257, 2**70, 1.5, "2"])
+def test_integrate_many_bad_threads(used_grid, camera, threads):
+    grid, before = used_grid
+    with raises(hg.InvalidValueError, "threads"):
+        grid.integrate_many(np.ones((1, H, W), bool), camera, good_pose()[None], threads=threads)
+    assert_unchanged(grid, before)
+
+
 @pytest.mark.parametrize("size", [0.0, -0.3, np.nan, np.inf])
 def test_bad_grid_size(size):
     with raises(hg.InvalidValueError, "size"):

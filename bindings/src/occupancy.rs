@@ -20,6 +20,9 @@ pub struct PyOccupancyGrid {
     pub inner: OccupancyGrid,
 }
 
+/// Largest explicit thread count of `integrate_many`.
+const MAX_CARVE_THREADS: i64 = 256;
+
 /// Voxels per axis when none is given (HEAPGrasp Table I).
 const DEFAULT_RESOLUTION: usize = 40;
 
@@ -104,14 +107,28 @@ impl PyOccupancyGrid {
         detached(py, move || inner.integrate(&cam, &pose, bytes))
     }
 
-    /// Integrates N silhouettes; nothing changes if any input is invalid.
+    /// Integrates N silhouettes; nothing changes if any input is invalid. `threads`: carve
+    /// on exactly that many threads (1 to 256) rather than as many as the work is worth;
+    /// the counts are the same. Counts saturate at 2**32 - 1.
+    #[pyo3(signature = (masks, camera, cam2worlds, *, threads = None))]
     fn integrate_many(
         &mut self,
         py: Python<'_>,
         masks: &Bound<'_, PyAny>,
         camera: &PyPinholeCamera,
         cam2worlds: &Bound<'_, PyAny>,
+        threads: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
+        let threads = match threads {
+            None => None,
+            Some(obj) => Some(int_arg(
+                obj,
+                "threads",
+                1,
+                MAX_CARVE_THREADS,
+                &format!("must be between 1 and {MAX_CARVE_THREADS}"),
+            )? as usize),
+        };
         let m = mask_arg(masks, "masks", 3)?;
         let cam = camera.inner;
         check_tail(
@@ -130,7 +147,10 @@ impl PyOccupancyGrid {
         }
         let bytes = m.bytes();
         let inner = &mut self.inner;
-        detached(py, move || inner.integrate_many(&cam, &poses, bytes))
+        detached(py, move || match threads {
+            None => inner.integrate_many(&cam, &poses, bytes),
+            Some(t) => inner.integrate_many_with_threads(&cam, &poses, bytes, t),
+        })
     }
 
     /// `(segmented, visible)` counts as uint32 (R, R, R) arrays.

@@ -108,8 +108,19 @@ class OccupancyGrid:
     def voxel_size(self) -> float: ...
     def integrate(self, mask: _Mask2, camera: PinholeCamera, cam2world: _F64) -> None:
         """Add one silhouette: ``mask`` bool/uint8 ``(H, W)``, nonzero = object."""
-    def integrate_many(self, masks: _Mask2, camera: PinholeCamera, cam2worlds: _F64) -> None:
-        """Add N silhouettes ``(N, H, W)`` seen from ``(N, 4, 4)`` poses; all-or-nothing."""
+    def integrate_many(
+        self,
+        masks: _Mask2,
+        camera: PinholeCamera,
+        cam2worlds: _F64,
+        *,
+        threads: int | None = None,
+    ) -> None:
+        """Add N silhouettes ``(N, H, W)`` seen from ``(N, 4, 4)`` poses; all-or-nothing.
+
+        ``threads``: carve on exactly that many threads (1 to 256) rather than as many as
+        the work is worth; the counts do not depend on it. Counts saturate at 2**32 - 1.
+        """
     def counts(self) -> tuple[_U32, _U32]:
         """``(segmented, visible)`` uint32 ``(R, R, R)`` copies."""
     def occupancy(self) -> _F32:
