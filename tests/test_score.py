@@ -166,3 +166,23 @@ def test_region_without_measured_volume_scores_zero_and_bad_regions_raise(box_sc
         hg.score_views(grid, scene, camera, trajs, region=np.ones((r, r, r - 1), bool))
     with pytest.raises(hg.ShapeError, match="region"):
         hg.score_views(grid, scene, camera, trajs, region=np.ones((r, r, r), np.float32))
+
+
+@pytest.mark.parametrize("big", [1 << 24, 2**32 - 1])
+def test_counts_far_beyond_any_trajectory_score_as_their_definition(box_scene, camera, big):
+    # A remembered grid (the scene memory) carries visible counts of 2**24; from_counts
+    # takes any uint32. Scoring must neither overflow nor build a table of that size,
+    # and must equal eq. 14 by its definition (counts saturate at 2**32 - 1).
+    scene, _ = box_scene
+    seen = ring_poses(2, radius=0.5, height=0.3, target=(0, 0, 0.08), jitter=0.5, seed=1)
+    fresh = observed_grid(scene, camera, seen)
+    seg, vis = fresh.counts()
+    carved = (vis > 0) & (seg == 0)
+    vis = np.where(carved, np.uint32(big), vis).astype(np.uint32)
+    seg = np.where(seg == vis, np.uint32(big) * (seg > 0), seg).astype(np.uint32)
+    grid = hg.OccupancyGrid.from_counts(ORIGIN, SIZE, seg, np.maximum(vis, seg))
+    assert grid.count_high_confidence(0.9) > 0
+    trajs = trajectories(6, 4, seed=3)
+    scores = hg.score_views(grid, scene, camera, trajs, lam=0.9)
+    want = [score_by_definition(grid, scene, camera, t, 0.9) for t in trajs]
+    np.testing.assert_allclose(scores, want, atol=2e-3)

@@ -106,6 +106,23 @@ fn score_views(c: &mut Criterion) {
             })
         });
     }
+    // A phase begun from a remembered hull (the scene memory): the voxels carved before
+    // carry a visible count of 2^24, the pipeline's "carved for good".
+    let fresh = grid_state(true);
+    let carved: Vec<u32> = fresh
+        .segmented()
+        .iter()
+        .zip(fresh.visible())
+        .map(|(&s, &v)| if v > 0 && s == 0 { 1 << 24 } else { v })
+        .collect();
+    let remembered = OccupancyGrid::from_counts(*fresh.spec(), fresh.segmented().to_vec(), carved)
+        .expect("valid counts");
+    let trajectories = candidate_trajectories((0.0, std::f64::consts::PI / 5.0 * 0.95), 10);
+    group.bench_function("after_first_waypoint_remembered", |b| {
+        b.iter(|| {
+            score::score_views(&remembered, &scene, &cam, &trajectories, 0.9).expect("valid input")
+        })
+    });
     group.finish();
 }
 

@@ -32,16 +32,23 @@ pub fn is_high_confidence(segmented: u32, visible: u32, lam: f32) -> bool {
 /// [`is_high_confidence`] as a table lookup: `thresholds[v]` is the smallest `s` with
 /// `f32(s) / f32(v) >= λ` (or `u32::MAX` when none), built from the very same f32
 /// division, so `s > 0 && s >= thresholds[v]` is exactly the same predicate without a
-/// division per voxel.
+/// division per voxel. Visible counts beyond the table (at most
+/// [`HighConfidenceTable::MAX_ROWS`] rows: a remembered grid's counts reach millions)
+/// take the division itself.
 #[derive(Debug, Clone)]
 pub struct HighConfidenceTable {
     thresholds: Vec<u32>,
+    lam: f32,
 }
 
 impl HighConfidenceTable {
-    /// A table for visible counts `0..=max_visible` at threshold `lam`.
+    /// The most visible counts a table holds (`0..MAX_ROWS`).
+    pub const MAX_ROWS: u32 = 1 << 16;
+
+    /// A table for visible counts `0..=max_visible` (at most [`Self::MAX_ROWS`] of them;
+    /// larger counts are answered by the division) at threshold `lam`.
     pub fn new(lam: f32, max_visible: u32) -> Self {
-        let thresholds = (0..=max_visible)
+        let thresholds = (0..=max_visible.min(Self::MAX_ROWS - 1))
             .map(|v| {
                 if v == 0 {
                     return u32::MAX;
@@ -61,14 +68,16 @@ impl HighConfidenceTable {
                 }
             })
             .collect();
-        Self { thresholds }
+        Self { thresholds, lam }
     }
 
-    /// Whether counts `(s, v)` are high-confidence; `v` must not exceed the table's range.
+    /// Whether counts `(s, v)` are high-confidence ([`is_high_confidence`]), for any `v`.
     #[inline(always)]
     pub fn contains(&self, s: u32, v: u32) -> bool {
-        debug_assert!((v as usize) < self.thresholds.len());
-        s > 0 && s >= self.thresholds[v as usize]
+        match self.thresholds.get(v as usize) {
+            Some(&t) => s > 0 && s >= t,
+            None => is_high_confidence(s, v, self.lam),
+        }
     }
 }
 
@@ -305,6 +314,20 @@ mod tests {
                         "voxel {a} {b} {c}"
                     );
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn the_table_answers_beyond_its_rows_as_the_division_does() {
+        let table = HighConfidenceTable::new(0.9, u32::MAX);
+        for v in [0, 1, 7, 65_535, 65_536, 1 << 24, u32::MAX - 1, u32::MAX] {
+            for s in [0, 1, v / 2, (v as f64 * 0.9) as u32, v.saturating_sub(1), v] {
+                assert_eq!(
+                    table.contains(s, v),
+                    is_high_confidence(s, v, 0.9),
+                    "{s}/{v}"
+                );
             }
         }
     }

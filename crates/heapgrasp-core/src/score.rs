@@ -85,7 +85,9 @@ impl Tracked {
         };
         let spec = grid.spec();
         for (i, (&s, &v)) in grid.segmented().iter().zip(grid.visible()).enumerate() {
-            if region.is_none_or(|r| r[i]) && table.contains(s + max_m, v + max_m) {
+            if region.is_none_or(|r| r[i])
+                && table.contains(s.saturating_add(max_m), v.saturating_add(max_m))
+            {
                 tracked.push(i, spec.unflatten(i), s, v);
             }
         }
@@ -163,7 +165,7 @@ pub fn score_views_in(
     }
     let max_m = trajectories.iter().map(Vec::len).max().unwrap_or(0) as u32;
     let max_v = grid.visible().iter().copied().max().unwrap_or(0);
-    let table = HighConfidenceTable::new(lam, max_v + max_m);
+    let table = HighConfidenceTable::new(lam, max_v.saturating_add(max_m));
     let before = match region {
         None => grid.count_high_confidence(lam),
         Some(r) => grid
@@ -291,8 +293,8 @@ impl Workspace {
         for (k, &i) in tracked.flat.iter().enumerate() {
             let (ds, dv) = (self.seg0[i as usize], self.vis0[i as usize]);
             if table.contains(
-                tracked.seg[k] + ds + remaining,
-                tracked.vis[k] + dv + remaining,
+                tracked.seg[k].saturating_add(ds + remaining),
+                tracked.vis[k].saturating_add(dv + remaining),
             ) {
                 self.alive.push((k as u32, ds as u16, dv as u16));
             }
@@ -314,8 +316,8 @@ impl Workspace {
                 .enumerate()
                 .filter(|&(k, &i)| {
                     table.contains(
-                        tracked.seg[k] + self.seg0[i as usize],
-                        tracked.vis[k] + self.vis0[i as usize],
+                        tracked.seg[k].saturating_add(self.seg0[i as usize]),
+                        tracked.vis[k].saturating_add(self.vis0[i as usize]),
                     )
                 })
                 .count();
@@ -364,8 +366,8 @@ impl Workspace {
                 }
                 let k = *k as usize;
                 table.contains(
-                    tracked.seg[k] + u32::from(*ds) + remaining,
-                    tracked.vis[k] + u32::from(*dv) + remaining,
+                    tracked.seg[k].saturating_add(u32::from(*ds) + remaining),
+                    tracked.vis[k].saturating_add(u32::from(*dv) + remaining),
                 )
             });
         }
@@ -374,8 +376,8 @@ impl Workspace {
             .filter(|&&(k, ds, dv)| {
                 let k = k as usize;
                 table.contains(
-                    tracked.seg[k] + u32::from(ds),
-                    tracked.vis[k] + u32::from(dv),
+                    tracked.seg[k].saturating_add(u32::from(ds)),
+                    tracked.vis[k].saturating_add(u32::from(dv)),
                 )
             })
             .count()
