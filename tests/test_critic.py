@@ -281,7 +281,8 @@ def test_config_and_builder_errors(tmp_path: Path) -> None:
     assert make_critic(RunConfig(grasp_critic="none")) is None
     with pytest.raises(ConfigError, match="unknown parameter 'critic_threshold'"):
         RunConfig.from_mapping({"critic_threshold": 0.5})  # retired: docs/experiments.md
-    with pytest.raises(FileNotFoundError, match=r"missing\.npz"):
+    # A missing file is a bad setting, as a missing network weights file is.
+    with pytest.raises(ConfigError, match=r"grasp_critic: .*not found: .*missing\.npz"):
         make_critic(RunConfig(grasp_critic=str(tmp_path / "missing.npz")))
 
 

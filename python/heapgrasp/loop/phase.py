@@ -604,22 +604,33 @@ def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND)
         from heapgrasp.planning.antipodal import AntipodalPlanner
 
         return AntipodalPlanner(max_opening=gripper.max_opening, gripper=gripper)
+    from heapgrasp.geometry.errors import WeightsError
     from heapgrasp.planning.grasp_network import NetworkGraspPlanner
 
     weights = _weights(config.grasp_weights, "grasp", "grasp_weights")
-    planner = NetworkGraspPlanner(weights, device=net_device(config))
+    device = net_device(config)
+    try:
+        planner = NetworkGraspPlanner(weights, device=device)
+    except WeightsError as err:  # a bad file is a bad setting: one clear error, before any scene
+        raise ConfigError(f"grasp_weights: {err}") from err
     if config.method == "vgn":
         planner.input_kind = "tsdf"
     return planner
 
 
 def make_critic(config: RunConfig) -> GraspCritic | None:
-    """The configured grasp critic (:attr:`RunConfig.critic`); None where there is none."""
+    """The configured grasp critic (:attr:`RunConfig.critic`); None where there is none. A
+    missing or bad critic file is a :class:`ConfigError` naming the file and the problem."""
     source = config.critic
     if source is None:
         return None
+    from heapgrasp.geometry.errors import WeightsError
+
     path = DEFAULT_CRITIC if source == "default" else Path(source)
-    return GraspCritic.load(path)
+    try:
+        return GraspCritic.load(path)
+    except (WeightsError, FileNotFoundError) as err:  # checked whole, before any scene
+        raise ConfigError(f"grasp_critic: {err}") from err
 
 
 def make_view_scorer(config: RunConfig) -> ViewScorer | None:
@@ -630,10 +641,15 @@ def make_view_scorer(config: RunConfig) -> ViewScorer | None:
         return OracleViewScorer(
             frames_per_candidate=ORACLE_FRAMES, target_radius=config.target_radius
         )
+    from heapgrasp.geometry.errors import WeightsError
     from heapgrasp.planning.view_network import NetworkViewScorer
 
     weights = _weights(config.view_weights, "view", "view_weights")
-    return NetworkViewScorer(weights, device=net_device(config))
+    device = net_device(config)
+    try:
+        return NetworkViewScorer(weights, device=device)
+    except WeightsError as err:
+        raise ConfigError(f"view_weights: {err}") from err
 
 
 def build_pipeline(

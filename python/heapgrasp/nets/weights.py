@@ -17,31 +17,44 @@ It is read back with ``torch.load(..., weights_only=True)``, so nothing in it bu
 tensors and plain Python values (no pickled classes, no code execution on load).
 
 Errors: a missing file raises :class:`FileNotFoundError` (naming the path; weights are
-written by the training command, none ship with this version); a corrupt or truncated
-file, a file of the other kind, or an architecture that does not match the stored
-tensors raises :class:`ValueError` naming the file and the problem.
+written by the training command, none ship with this version). Every other bad file
+raises :class:`~heapgrasp.geometry.errors.WeightsError` (a ``ValueError``) whose message
+starts with the file's path and says what is wrong; a file is checked whole when it is
+loaded, before any network runs:
+
+* the file: not a regular file, unreadable, empty, not a zip archive (``torch.save``'s
+  format; a truncated one has lost its end), a member whose bytes fail the archive's
+  CRC-32 (garbled), or a payload ``torch.load(weights_only=True)`` refuses;
+* the description: ``format``, ``version`` (an integer 1 … :data:`FORMAT_VERSION`),
+  ``kind``, ``architecture`` (a dict with str keys the network accepts), ``resolution``
+  (the architecture's), ``command`` and ``created`` (str), ``metadata`` (a dict);
+* the tensors (:func:`load_grasp_net`, :func:`load_view_net`): exactly the network's names,
+  each with the network's shape and dtype, and every value finite.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import os
+import re
 import sys
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, TypeGuard
 
 import numpy as np
 import torch
 from torch import nn
 
 import heapgrasp
+from heapgrasp.geometry.errors import WeightsError, check_archive
 from heapgrasp.nets.models import GraspNet, ViewNet
 
 __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
     "Kind",
+    "WeightsError",
     "default_weights_dir",
     "find_default",
     "load_grasp_net",
@@ -166,6 +179,28 @@ def save_weights(
     return out
 
 
+def _load_payload(p: Path) -> object:
+    """``torch.load`` of ``p`` after checking the file itself (WeightsError otherwise)."""
+    check_archive(p, "weights file")
+    try:
+        return torch.load(p, map_location="cpu", weights_only=True)
+    except Exception as exc:  # torch raises many types for bad archives
+        raise WeightsError(
+            p,
+            f"corrupt or truncated weights file, or not a heapgrasp weights file ({_detail(exc)})",
+        ) from exc
+
+
+def _detail(exc: BaseException) -> str:
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", text).strip()  # torch's messages carry ANSI bold
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _is_int(value: object) -> TypeGuard[int]:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
 def _read(path: str | os.PathLike[str], kind: Kind | None) -> dict[str, Any]:
     p = Path(path)
     what = _NAMES[kind] if kind is not None else "network"
@@ -176,33 +211,49 @@ def _read(path: str | os.PathLike[str], kind: Kind | None) -> dict[str, Any]:
             f"version"
         )
     if not p.is_file():
-        raise ValueError(f"{p}: not a file (expected {what} weights)")
-    try:
-        data = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception as exc:  # torch raises many types for bad archives
-        raise ValueError(
-            f"{p}: corrupt or truncated weights file, or not a heapgrasp weights file "
-            f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})"
-        ) from exc
+        raise WeightsError(p, f"not a file (expected {what} weights)")
+    data = _load_payload(p)
     if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise ValueError(f"{p}: not a heapgrasp weights file (no format={FORMAT!r} entry)")
+        raise WeightsError(p, f"not a heapgrasp weights file (no format={FORMAT!r} entry)")
     version = data.get("version")
-    if not isinstance(version, int) or version > FORMAT_VERSION:
-        raise ValueError(
-            f"{p}: unsupported weights format version {version!r} (this heapgrasp reads "
-            f"versions up to {FORMAT_VERSION})"
+    if not _is_int(version) or not 1 <= version <= FORMAT_VERSION:
+        raise WeightsError(
+            p,
+            f"unsupported weights format version {version!r} (this heapgrasp reads "
+            f"versions 1 to {FORMAT_VERSION})",
         )
     stored = data.get("kind")
     if stored not in _CLASSES:
-        raise ValueError(f"{p}: unknown network kind {stored!r} (expected 'grasp' or 'view')")
+        raise WeightsError(p, f"unknown network kind {stored!r} (expected 'grasp' or 'view')")
     if kind is not None and stored != kind:
-        raise ValueError(
-            f"{p}: holds {_NAMES[stored]} weights (kind={stored!r}), expected {what} "
-            f"weights (kind={kind!r})"
+        raise WeightsError(
+            p,
+            f"holds {_NAMES[stored]} weights (kind={stored!r}), expected {what} "
+            f"weights (kind={kind!r})",
         )
-    for key, typ in (("architecture", dict), ("state_dict", dict), ("metadata", dict)):
-        if not isinstance(data.get(key), typ):
-            raise ValueError(f"{p}: missing or malformed {key!r} entry")
+    for key, typ in (
+        ("architecture", dict),
+        ("metadata", dict),
+        ("command", str),
+        ("created", str),
+        ("state_dict", dict),
+    ):
+        label = "entry" if key == "state_dict" else "metadata field"
+        if key not in data:
+            raise WeightsError(p, f"{label} {key!r} missing")
+        if not isinstance(data[key], typ):
+            raise WeightsError(
+                p, f"{label} {key!r} is a {type(data[key]).__name__}, not a {typ.__name__}"
+            )
+    arch = data["architecture"]
+    bad_keys = [k for k in arch if not isinstance(k, str)]
+    if bad_keys:
+        raise WeightsError(p, f"metadata field 'architecture' has non-str keys {bad_keys!r}")
+    resolution = data.get("resolution")
+    if not _is_int(resolution) or resolution < 1:
+        raise WeightsError(
+            p, f"metadata field 'resolution' is {resolution!r}, not a grid side (an integer)"
+        )
     return data
 
 
@@ -213,25 +264,70 @@ def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
     return {k: v for k, v in data.items() if k != "state_dict"}
 
 
+def _shape(t: torch.Tensor) -> tuple[int, ...]:
+    return tuple(int(n) for n in t.shape)
+
+
+def _check_state(
+    p: Path, state: dict[Any, Any], expected: Mapping[str, torch.Tensor], arch: Any
+) -> None:
+    """``state`` holds exactly ``expected``'s names, shapes and dtypes, all finite."""
+    mismatch = f"weights do not match the stored architecture {arch}"
+    odd = [k for k, v in state.items() if not isinstance(k, str) or not isinstance(v, torch.Tensor)]
+    if odd:
+        raise WeightsError(p, f"state_dict holds non-tensor entries: {odd[:5]!r}")
+    missing = [k for k in expected if k not in state]
+    if missing:
+        raise WeightsError(p, f"{mismatch}: missing tensor(s) {', '.join(map(repr, missing))}")
+    unexpected = [k for k in state if k not in expected]
+    if unexpected:
+        raise WeightsError(
+            p, f"{mismatch}: unexpected tensor(s) {', '.join(map(repr, unexpected))}"
+        )
+    for name, want in expected.items():
+        got = state[name]
+        if _shape(got) != _shape(want):
+            raise WeightsError(
+                p,
+                f"{mismatch}: size mismatch for {name!r}: shape {_shape(got)} in the file, "
+                f"{_shape(want)} in the network",
+            )
+        if got.dtype != want.dtype:
+            raise WeightsError(
+                p, f"dtype of {name!r} is {got.dtype}, the network's is {want.dtype}"
+            )
+        if got.is_floating_point() or got.is_complex():
+            for label, bad in (("NaN", torch.isnan(got)), ("infinity", torch.isinf(got))):
+                count = int(bad.sum())
+                if count:
+                    raise WeightsError(
+                        p,
+                        f"weights hold {label} in {name!r} ({count} of {got.numel()} values)",
+                    )
+
+
 def _build(path: str | os.PathLike[str], kind: Kind, device: str | torch.device) -> nn.Module:
-    data = _read(path, kind)
+    p = Path(path)
+    data = _read(p, kind)
     arch = data["architecture"]
     cls = _CLASSES[kind]
     try:
         model = cls(**arch)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{Path(path)}: architecture {arch} is invalid: {exc}") from exc
-    state = data["state_dict"]
-    if not all(isinstance(v, torch.Tensor) for v in state.values()):
-        raise ValueError(f"{Path(path)}: state_dict holds non-tensor entries")
-    if any(v.is_floating_point() and not bool(torch.isfinite(v).all()) for v in state.values()):
-        raise ValueError(f"{Path(path)}: weights hold NaN or infinity")
+        raise WeightsError(p, f"architecture {arch} is invalid: {exc}") from exc
+    _check_state(p, data["state_dict"], model.state_dict(), arch)
+    if data["resolution"] != model.resolution:
+        raise WeightsError(
+            p,
+            f"metadata field 'resolution' is {data['resolution']}, the architecture's is "
+            f"{model.resolution}",
+        )
     try:
-        model.load_state_dict(state, strict=True)
-    except RuntimeError as exc:
+        model.load_state_dict(data["state_dict"], strict=True)
+    except RuntimeError as exc:  # pragma: no cover - _check_state finds these first
         detail = " ".join(str(exc).split())
-        raise ValueError(
-            f"{Path(path)}: weights do not match the stored architecture {arch}: {detail}"
+        raise WeightsError(
+            p, f"weights do not match the stored architecture {arch}: {detail}"
         ) from exc
     return model.to(device).eval()
 
@@ -244,7 +340,8 @@ def load_grasp_net(
 ) -> GraspNet:
     """The :class:`GraspNet` stored in ``path``, on ``device``, in eval mode.
 
-    ``resolution``: when given, the stored grid side must equal it (``ValueError``)."""
+    ``resolution``: when given, the stored grid side must equal it. A bad file raises
+    :class:`~heapgrasp.geometry.errors.WeightsError` (module docstring)."""
     model = _build(path, "grasp", device)
     assert isinstance(model, GraspNet)
     _check_res(path, model.resolution, resolution)
@@ -259,7 +356,8 @@ def load_view_net(
 ) -> ViewNet:
     """The :class:`ViewNet` stored in ``path``, on ``device``, in eval mode.
 
-    ``resolution``: when given, the stored grid side must equal it (``ValueError``)."""
+    ``resolution``: when given, the stored grid side must equal it. A bad file raises
+    :class:`~heapgrasp.geometry.errors.WeightsError` (module docstring)."""
     model = _build(path, "view", device)
     assert isinstance(model, ViewNet)
     _check_res(path, model.resolution, resolution)
@@ -268,4 +366,4 @@ def load_view_net(
 
 def _check_res(path: str | os.PathLike[str], stored: int, wanted: int | None) -> None:
     if wanted is not None and stored != wanted:
-        raise ValueError(f"{Path(path)}: network reads {stored}³ grids, the grid here is {wanted}³")
+        raise WeightsError(path, f"network reads {stored}³ grids, the grid here is {wanted}³")

@@ -35,6 +35,7 @@ import dataclasses
 import datetime as _dt
 import json
 import math
+import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +44,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from heapgrasp.geometry.errors import WeightsError, check_archive
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.geometry.gripper import PANDA_HAND
 from heapgrasp.planning.volumes import GraspCandidate
@@ -51,13 +53,16 @@ if TYPE_CHECKING:
     from heapgrasp.planning.critic_net import ConvCritic
 
 __all__ = [
+    "CRITIC_FORMAT",
     "CROP_SHAPE",
     "DEFAULT_CRITIC",
     "MODELS",
     "GraspCritic",
+    "WeightsError",
     "candidate_features",
     "crop_in_grasp_frame",
     "fit_logistic",
+    "read_critic_arrays",
     "view_features",
 ]
 
@@ -383,7 +388,7 @@ class GraspCritic:
         )
         np.savez_compressed(
             path,
-            format=np.str_("heapgrasp-critic"),
+            format=np.str_(CRITIC_FORMAT),
             version=np.int64(1 if self.net is None else 2),
             **net,
             mean=self.mean,
@@ -397,32 +402,171 @@ class GraspCritic:
 
     @classmethod
     def load(cls, path: Path | str) -> GraspCritic:
-        """Reads a critic written by :meth:`save`; a clear error for a missing or
-        foreign file."""
+        """Reads a critic written by :meth:`save`, checked whole (:func:`read_critic_arrays`):
+        a missing file raises :class:`FileNotFoundError`, any other bad file a
+        :class:`~heapgrasp.geometry.errors.WeightsError` naming the file and the problem."""
         p = Path(path)
-        if not p.is_file():
-            raise FileNotFoundError(f"grasp critic file not found: {p}")
-        try:
-            with np.load(p, allow_pickle=False) as data:
-                version = int(data["version"])
-                if str(data["format"]) != "heapgrasp-critic" or version not in (1, 2):
-                    raise ValueError("not a heapgrasp critic (format/version)")
-                net = None
-                if version == 2:
-                    from heapgrasp.planning.critic_net import ARRAYS, ConvCritic
+        arrays, meta = read_critic_arrays(p)
+        net = None
+        if int(arrays["version"]) == 2:
+            from heapgrasp.planning.critic_net import ARRAYS, ConvCritic
 
-                    net = ConvCritic(
-                        *(np.asarray(data[f"net_{k}"], dtype=np.float64) for k in ARRAYS)
-                    )
-                return cls(
-                    np.asarray(data["mean"], dtype=np.float64),
-                    np.asarray(data["scale"], dtype=np.float64),
-                    np.asarray(data["components"], dtype=np.float64),
-                    np.asarray(data["weights"], dtype=np.float64),
-                    float(data["threshold"]),
-                    float(data["candidate_epsilon"]),
-                    json.loads(str(data["metadata"])),
-                    net,
-                )
-        except (KeyError, OSError, ValueError) as exc:
-            raise ValueError(f"cannot read grasp critic {p}: {exc}") from exc
+            try:
+                net = ConvCritic(*(arrays[f"net_{k}"].astype(np.float64) for k in ARRAYS))
+            except ValueError as exc:  # pragma: no cover - read_critic_arrays checks shapes
+                raise WeightsError(p, str(exc)) from exc
+        try:
+            return cls(
+                arrays["mean"].astype(np.float64),
+                arrays["scale"].astype(np.float64),
+                arrays["components"].astype(np.float64),
+                arrays["weights"].astype(np.float64),
+                float(arrays["threshold"]),
+                float(arrays["candidate_epsilon"]),
+                meta,
+                net,
+            )
+        except ValueError as exc:  # pragma: no cover - read_critic_arrays checks these
+            raise WeightsError(p, str(exc)) from exc
+
+
+# --------------------------------------------------------------------------- file checks
+
+CRITIC_FORMAT = "heapgrasp-critic"
+"""``format`` entry of a critic file."""
+_N_FEATURES = 2 * int(np.prod(CROP_SHAPE)) + N_SCALARS
+
+
+def _describe(a: npt.NDArray[Any]) -> str:
+    return f"{a.dtype} array of shape {a.shape}"
+
+
+def _open_npz(p: Path) -> dict[str, npt.NDArray[Any]]:
+    """Every array of the ``.npz`` file ``p``, the file checked first
+    (:func:`~heapgrasp.geometry.errors.check_archive`); the members must be ``.npy``
+    arrays without pickles."""
+    if not p.exists():
+        raise FileNotFoundError(f"grasp critic file not found: {p}")
+    check_archive(p, "grasp critic file (.npz)")
+    try:
+        with np.load(p, allow_pickle=False) as data:
+            return {k: np.asarray(data[k]) for k in data.files}
+    except (OSError, EOFError, ValueError, zipfile.BadZipFile) as exc:
+        raise WeightsError(p, f"cannot read its arrays ({_detail(exc)})") from exc
+
+
+def _detail(exc: BaseException) -> str:
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _get(
+    p: Path, arrays: dict[str, npt.NDArray[Any]], name: str, kinds: str, what: str
+) -> npt.NDArray[Any]:
+    """``arrays[name]``, its dtype's kind one of ``kinds`` (numpy's letters)."""
+    if name not in arrays:
+        raise WeightsError(p, f"missing key {name!r}")
+    a = arrays[name]
+    if a.dtype.kind not in kinds:
+        raise WeightsError(p, f"dtype of {name!r} is {a.dtype}, expected {what}")
+    return a
+
+
+def _floats(
+    p: Path, arrays: dict[str, npt.NDArray[Any]], name: str, shape: tuple[int, ...] | int
+) -> npt.NDArray[Any]:
+    """A finite floating-point array of ``shape`` (or of ``shape`` dimensions)."""
+    a = _get(p, arrays, name, "f", "a floating-point array")
+    if isinstance(shape, int):
+        if a.ndim != shape:
+            raise WeightsError(p, f"{name!r} is {_describe(a)}, expected {shape} dimensions")
+    elif a.shape != shape:
+        raise WeightsError(p, f"shape of {name!r} is {a.shape}, expected {shape}")
+    for label, bad in (("NaN", np.isnan(a)), ("infinity", np.isinf(a))):
+        if bad.any():
+            first = tuple(int(i) for i in np.argwhere(bad)[0])
+            raise WeightsError(
+                p,
+                f"{label} in {name!r} ({int(bad.sum())} of {a.size} values, first at "
+                f"index {first[0] if len(first) == 1 else first})",
+            )
+    return a
+
+
+def _scalar(p: Path, arrays: dict[str, npt.NDArray[Any]], name: str, kinds: str) -> Any:
+    what = {"U": "a string", "iu": "an integer", "fiu": "a number"}[kinds]
+    a = _get(p, arrays, name, kinds, what)
+    if a.shape != ():
+        raise WeightsError(p, f"{name!r} is {_describe(a)}, expected {what}")
+    return a.item()
+
+
+def read_critic_arrays(path: Path | str) -> tuple[dict[str, npt.NDArray[Any]], dict[str, Any]]:
+    """The arrays and the metadata of the critic file ``path``, checked whole: the file
+    (:class:`FileNotFoundError` if missing), ``format`` and ``version``, every array's
+    presence, dtype (floating point), shape and finite values, the scale of each feature
+    (> 0: features are divided by it), ``threshold`` and ``candidate_epsilon`` in [0, 1],
+    and the metadata (a JSON object whose ``model`` and ``crop_shape`` are this file's).
+    Anything wrong raises :class:`~heapgrasp.geometry.errors.WeightsError` naming ``path``
+    and what is wrong."""
+    p = Path(path)
+    arrays = _open_npz(p)
+    fmt = _scalar(p, arrays, "format", "U")
+    if fmt != CRITIC_FORMAT:
+        raise WeightsError(p, f"format is {fmt!r}, not a heapgrasp critic ({CRITIC_FORMAT!r})")
+    version = _scalar(p, arrays, "version", "iu")
+    if version not in (1, 2):
+        raise WeightsError(p, f"unsupported critic version {version} (this heapgrasp reads 1, 2)")
+    n = _N_FEATURES
+    n_crop = n - N_SCALARS
+    _floats(p, arrays, "mean", (n,))
+    scale = _floats(p, arrays, "scale", (n,))
+    bad = np.flatnonzero(scale <= 0)
+    if bad.size:
+        raise WeightsError(
+            p,
+            f"zero or negative scale: {bad.size} of {n} values of 'scale' are <= 0 (first "
+            f"at index {int(bad[0])}: {scale[bad[0]]}); features are divided by their scale",
+        )
+    components = _floats(p, arrays, "components", 2)
+    k = components.shape[0]
+    _floats(p, arrays, "components", (k, n_crop))
+    _floats(p, arrays, "weights", (k + N_SCALARS + 1,))
+    for name in ("threshold", "candidate_epsilon"):
+        value = float(_scalar(p, arrays, name, "fiu"))
+        if not 0.0 <= value <= 1.0:
+            raise WeightsError(p, f"{name!r} is {value}, expected a number in [0, 1]")
+    if version == 2:
+        from heapgrasp.planning.critic_net import ARRAYS
+
+        names = {k: f"net_{k}" for k in ARRAYS}
+        c1 = len(_floats(p, arrays, names["conv1_b"], 1))
+        c2 = len(_floats(p, arrays, names["conv2_b"], 1))
+        hidden = len(_floats(p, arrays, names["fc1_b"], 1))
+        expected = {
+            "conv1_w": (c1, 2, 3, 3, 3),
+            "conv2_w": (c2, c1, 3, 3, 3),
+            "fc1_w": (hidden, 8 * c2 + N_SCALARS),
+            "fc2_w": (1, hidden),
+            "fc2_b": (1,),
+        }
+        for name, shape in expected.items():
+            _floats(p, arrays, names[name], shape)
+    meta = _metadata(p, arrays, "linear" if version == 1 else "cnn")
+    return arrays, meta
+
+
+def _metadata(p: Path, arrays: dict[str, npt.NDArray[Any]], model: str) -> dict[str, Any]:
+    text = _scalar(p, arrays, "metadata", "U")
+    try:
+        meta = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise WeightsError(p, f"metadata is not valid JSON: {exc}") from exc
+    if not isinstance(meta, dict):
+        raise WeightsError(p, f"metadata is a JSON {type(meta).__name__}, not an object")
+    for key, want in (("model", model), ("crop_shape", list(CROP_SHAPE))):
+        if key not in meta:
+            raise WeightsError(p, f"metadata field {key!r} missing")
+        if meta[key] != want:
+            raise WeightsError(p, f"metadata field {key!r} is {meta[key]!r}, expected {want!r}")
+    return meta

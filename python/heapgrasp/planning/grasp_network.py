@@ -51,7 +51,8 @@ class NetworkGraspPlanner:
     ----------
     net_or_path : GraspNet or path-like
         A network (moved to ``device`` and put in eval mode) or a weights file
-        (:func:`heapgrasp.nets.load_grasp_net`).
+        (:func:`heapgrasp.nets.load_grasp_net`, which checks it whole: a bad file raises
+        :class:`~heapgrasp.geometry.errors.WeightsError` naming it and the problem).
     device : str or torch.device
         Where the network runs (``"cpu"``, ``"cuda"``, ...).
 

@@ -40,7 +40,8 @@ class NetworkViewScorer:
     ----------
     net_or_path : ViewNet or path-like
         A network (moved to ``device`` and put in eval mode) or a weights file
-        (:func:`heapgrasp.nets.load_view_net`).
+        (:func:`heapgrasp.nets.load_view_net`, which checks it whole: a bad file raises
+        :class:`~heapgrasp.geometry.errors.WeightsError` naming it and the problem).
     device : str or torch.device
         Where the network runs.
     """
