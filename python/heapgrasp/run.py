@@ -5,10 +5,12 @@
 directory:
 
 * ``config.json`` — the full :class:`~heapgrasp.loop.config.RunConfig`;
-* ``scenes.jsonl`` — one JSON record per finished scene, appended and flushed as soon as
-  the scene ends, so an interrupted run loses nothing (``resume=True`` skips the
-  scenes already there);
-* ``results.json`` — the aggregate (:func:`summarize`), rewritten after every scene.
+* ``scenes.jsonl`` — one JSON record per finished scene, keyed by its index, appended,
+  flushed and synced as soon as the scene ends, so an interrupted run loses nothing
+  (``resume=True`` skips the scenes already there);
+* ``results.json`` — the aggregate (:func:`summarize`), rewritten after every scene;
+
+and holds the directory's lock while it runs (:class:`~heapgrasp.loop.records.RunDir`).
 
 Scenes run in a process pool when ``workers > 1`` (each worker builds its own
 PyBullet world); a scene that raises is recorded with its error and the run goes on.
@@ -16,7 +18,6 @@ PyBullet world); a scene that raises is recorded with its error and the run goes
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 import time
@@ -32,9 +33,20 @@ import numpy as np
 
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.metrics import Phase, aggregate
+from heapgrasp.loop.records import (
+    CONFIG_FILE,
+    RESULTS_FILE,
+    SCENES_FILE,
+    RecordError,
+    RunDir,
+    RunLockedError,
+    write_json,
+)
 from heapgrasp.loop.stats import success_interval
 
 __all__ = [
+    "CONFIG_FILE",
+    "REFUSED",
     "RESULTS_FILE",
     "SCENES_FILE",
     "RunExistsError",
@@ -46,13 +58,21 @@ __all__ = [
     "summarize",
 ]
 
-SCENES_FILE = "scenes.jsonl"
-RESULTS_FILE = "results.json"
-CONFIG_FILE = "config.json"
-
 
 class RunExistsError(ValueError):
     """The output directory already holds a run (and ``resume`` was not asked for)."""
+
+
+#: What :func:`run` raises before any scene when it cannot start (the command line
+#: exits 2 on them): a bad configuration, a missing optional dependency, records that
+#: cannot be trusted, a run already there, a directory another process is writing.
+REFUSED: tuple[type[Exception], ...] = (
+    ConfigError,
+    ImportError,
+    RecordError,
+    RunExistsError,
+    RunLockedError,
+)
 
 
 def _method_label(config: RunConfig) -> str:
@@ -68,12 +88,20 @@ def _method_label(config: RunConfig) -> str:
 
 
 def preflight(config: RunConfig, *, viz: bool = False) -> None:
-    """Builds, once and before any scene, what a run needs beyond the simulator — the
-    grasp planner, the view scorer and the critic, loading their weights — so that a
-    missing optional dependency (PyTorch for the networks, rerun-sdk for ``viz``) or a bad
-    weights file is one clear error, not a failed record per scene."""
+    """Checks, once and before any scene, what a run needs: that its objects fit on the
+    table, and the grasp planner, the view scorer and the critic (loading their weights)
+    — so that a count that cannot be placed, a missing optional dependency (PyTorch for
+    the networks, rerun-sdk for ``viz``) or a bad weights file is one clear error, not a
+    failed record per scene."""
     from heapgrasp.loop.phase import make_critic, make_grasp_planner, make_view_scorer
+    from heapgrasp.sim.build import table_capacity
 
+    capacity = table_capacity(config)
+    if config.objects > capacity:
+        raise ConfigError(
+            f"objects: {config.objects} cannot be placed: the {config.cube_size} m table holds "
+            f"at most {capacity} of the {config.split} split's objects side by side"
+        )
     make_grasp_planner(config)
     make_view_scorer(config)
     make_critic(config)
@@ -104,6 +132,12 @@ def run_scene(
     with scene_world(config, seed, group, gui=gui) as world:
         scene = world.to_dict()
         total = len(world.objects)
+        if total < config.objects:
+            print(
+                f"heapgrasp: scene {index} (seed {seed}): placed {total} of {config.objects} "
+                "objects; the others fell off the table",
+                file=sys.stderr,
+            )
         recorder = None
         if record is not None:
             from heapgrasp.geometry.grid import GridFrame
@@ -129,6 +163,7 @@ def run_scene(
         "scene": index,
         "seed": seed,
         "category": group,
+        "objects_requested": config.objects,
         "objects_total": total,
         "stop_reason": reason.value,
         "phases": [p.to_dict() for p in phases],
@@ -206,6 +241,8 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         "grasp_success_ci95": [100 * x for x in success_interval(k, n)] if n else None,
         "per_scene_group": per_group,
         "scenes_completed": len(done),
+        # objects asked for and placed (a pile may drop some off the table)
+        "objects_requested": sum(int(r.get("objects_requested", config.objects)) for r in done),
         "scenes_failed": [{"scene": r["scene"], "error": r["error"]} for r in failed],
         "stop_reasons": dict(Counter(r["stop_reason"] for r in done)),
         "wall_time_per_scene_s": _stats([float(r["wall_time_s"]) for r in done]),
@@ -219,50 +256,38 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
 
 
 def load_records(out: Path) -> list[dict[str, Any]]:
-    """Scene records of ``out/scenes.jsonl`` (a torn last line is ignored)."""
-    path = Path(out) / SCENES_FILE
-    if not path.exists():
-        return []
-    records = []
-    for line in path.read_text().splitlines():
-        if not line.strip():
-            continue
-        try:
-            records.append(json.loads(line))
-        except json.JSONDecodeError:
-            print(f"heapgrasp: ignoring a torn record in {path}", file=sys.stderr)
-    return records
+    """The scene records of run directory ``out`` (:meth:`RunDir.records`: strict, a torn
+    last line ignored)."""
+    return RunDir(out).records()
 
 
-def _write_json(path: Path, data: dict[str, Any]) -> None:
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(data, indent=2))
-    tmp.replace(path)
-
-
-def _check_resume(out: Path, config: RunConfig, resume: bool) -> list[dict[str, Any]]:
-    records = load_records(out)
-    if not records:
-        return []
-    if not resume:
-        raise RunExistsError(
-            f"{out} already holds {len(records)} finished scene(s); pass --resume to "
-            "continue that run, or choose another --out"
+def _prepare(rundir: RunDir, config: RunConfig, resume: bool) -> list[dict[str, Any]]:
+    """Checks ``rundir`` for a run of ``config`` and returns the finished records to keep
+    (failed scenes run again). Raises what :data:`REFUSED` lists."""
+    saved = rundir.read_config()
+    if rundir.repair_tail():
+        print(f"heapgrasp: cut a torn last record off {rundir.scenes_file}", file=sys.stderr)
+    if resume and saved is not None and saved != config:
+        raise ConfigError(
+            f"--resume: the configuration differs from {rundir.config_file} "
+            f"({saved.changes_to(config)})"
         )
-    saved_path = out / CONFIG_FILE
-    if saved_path.exists():
-        saved = json.loads(saved_path.read_text())
-        mine = config.to_dict()
-        # A parameter newer than the saved run ran as its default (new parameters
-        # default to the behaviour before them).
-        default = RunConfig().to_dict()
-        saved = {k: saved.get(k, default[k]) for k in mine}
-        diff = sorted(k for k in mine if k != "scenes" and saved[k] != mine[k])
-        if diff:
-            detail = ", ".join(f"{k}: {saved[k]!r} -> {mine[k]!r}" for k in diff)
-            raise ConfigError(f"--resume: the configuration differs from {saved_path} ({detail})")
-    # Failed scenes are retried on resume.
-    return [r for r in records if "error" not in r]
+    records = rundir.records(config.scenes if resume or saved is None else saved.scenes)
+    if records and not resume:
+        raise RunExistsError(
+            f"{rundir.path} already holds {len(records)} finished scene(s); pass --resume "
+            "to continue that run, or choose another --out"
+        )
+    if records and saved is None:
+        raise ConfigError(
+            f"--resume: {rundir.config_file} is missing, so the {len(records)} record(s) in "
+            f"{rundir.scenes_file} cannot be matched to a configuration; start a new run "
+            "in another --out"
+        )
+    kept = [r for r in records if "error" not in r]
+    if len(kept) < len(records):  # failed scenes run again
+        rundir.rewrite_records(kept)
+    return kept
 
 
 def run(
@@ -296,11 +321,11 @@ def run(
 
     Raises
     ------
-    ConfigError, ImportError
-        Before any scene: what the run needs cannot be built (:func:`preflight`).
+    ConfigError, ImportError, RecordError, RunExistsError, RunLockedError
+        Before any scene (:data:`REFUSED`): what the run needs cannot be built
+        (:func:`preflight`), or ``out`` holds records that cannot be trusted, another
+        run, a different configuration to resume, or is being written by another process.
     """
-    from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
-
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     if categories is not None and len(categories) != config.scenes:
@@ -311,13 +336,43 @@ def run(
         raise ValueError("viz: needs an output directory")
     preflight(config, viz=viz)
     records: list[dict[str, Any]] = []
-    if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        records = _check_resume(out, config, resume)
-        if resume:  # rewrite without failed scenes, which run again
-            (out / SCENES_FILE).write_text("".join(json.dumps(r) + "\n" for r in records))
-        _write_json(out / CONFIG_FILE, config.to_dict())
+    rundir = None if out is None else RunDir(out).lock()
+    try:
+        if rundir is not None:
+            records = _prepare(rundir, config, resume)
+            rundir.write_config(config)
+        return _run_scenes(
+            config,
+            rundir,
+            records,
+            workers=workers,
+            categories=categories,
+            progress=progress,
+            gui=gui,
+            viz=viz,
+            on_scene=on_scene,
+        )
+    finally:
+        if rundir is not None:
+            rundir.unlock()
+
+
+def _run_scenes(
+    config: RunConfig,
+    rundir: RunDir | None,
+    records: list[dict[str, Any]],
+    *,
+    workers: int,
+    categories: Sequence[str] | None,
+    progress: bool,
+    gui: bool,
+    viz: bool,
+    on_scene: Callable[[dict[str, Any]], None] | None,
+) -> dict[str, Any]:
+    """:func:`run`'s scenes, on a prepared (and locked) run directory."""
+    from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
+
+    out = None if rundir is None else rundir.path
     done = {int(r["scene"]) for r in records}
     pending = [i for i in range(config.scenes) if i not in done]
 
@@ -338,12 +393,9 @@ def run(
 
     def finish(record: dict[str, Any]) -> None:
         records.append(record)
-        if out is not None:
-            with (out / SCENES_FILE).open("a") as fh:
-                fh.write(json.dumps(record) + "\n")
-                fh.flush()
-                os.fsync(fh.fileno())
-            _write_json(out / RESULTS_FILE, summarize(config, records))
+        if rundir is not None:
+            rundir.append(record)
+            write_json(rundir.results_file, summarize(config, records))
         if on_scene is not None:
             on_scene(record)
         ok = sum(p["outcome"] == "success" for r in records for p in r.get("phases", []))
@@ -374,8 +426,8 @@ def run(
     finally:
         bar.close()
     summary = summarize(config, records)
-    if out is not None:
-        _write_json(out / RESULTS_FILE, summary)
+    if rundir is not None:
+        write_json(rundir.results_file, summary)
     return summary
 
 
@@ -420,6 +472,9 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"({summary['early_stops']} of {len(summary.get('phases', []))} phases stopped "
             "viewing early)"
         )
+    placed, asked = summary.get("objects_total"), summary.get("objects_requested")
+    if isinstance(placed, int) and isinstance(asked, int) and placed < asked:
+        lines.append(f"objects placed: {placed} of the {asked} asked for (a pile drops some)")
     if summary.get("scenes_failed"):
         lines.append(f"FAILED scenes: {summary['scenes_failed']}")
     return "\n".join(lines)

@@ -279,6 +279,8 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
 
 def command(args: argparse.Namespace) -> int:
     """Runs ``heapgrasp bench sim``; returns the exit status."""
+    from heapgrasp.run import REFUSED
+
     try:
         methods = [m.strip() for m in args.methods.split(",") if m.strip()]
         base, per_method = _configs(args, methods)
@@ -293,7 +295,7 @@ def command(args: argparse.Namespace) -> int:
             figures=not args.no_figures,
             per_method=per_method,
         )
-    except ConfigError as exc:
+    except REFUSED as exc:
         print(f"heapgrasp bench sim: {exc}", file=sys.stderr)
         return 2
     print((out / "table.md").read_text())

@@ -27,6 +27,7 @@ from heapgrasp.loop.config import (
     parse_sets,
     presets,
 )
+from heapgrasp.loop.records import CONFIG_FILE, RunDir
 
 __all__ = ["add_parser", "config_from_args", "run_command"]
 
@@ -118,15 +119,38 @@ def add_parser(
 
 
 def config_from_args(args: argparse.Namespace) -> RunConfig:
-    """The :class:`RunConfig` of parsed ``heapgrasp run`` arguments (:func:`compose`)."""
+    """The :class:`RunConfig` of parsed ``heapgrasp run`` arguments (:func:`compose`).
+
+    With ``--resume`` it is the configuration saved in ``--out``: the run continues as it
+    was configured, and flags, ``--config`` and ``--set`` may only repeat it (a
+    :class:`ConfigError` lists what they would change)."""
     loaded = ConfigFile.load(args.config) if args.config is not None else None
     flags = {field: getattr(args, dest) for dest, field in _FLAGS.items()}
-    return compose(loaded, flags, parse_sets(args.set))
+    sets = parse_sets(args.set)
+    if not args.resume:
+        return compose(loaded, flags, sets)
+    if args.out is None:
+        raise ConfigError("--resume: name the run to continue with --out DIR")
+    saved = RunDir(args.out).read_config()
+    if saved is None:
+        raise ConfigError(
+            f"--resume: {args.out} holds no run to continue ({CONFIG_FILE} not found)"
+        )
+    base = loaded.resolve(saved.method) if loaded is not None else saved
+    asked = base.replace(flags, source="command line").replace(sets, source="--set")
+    if asked != saved:
+        changed = saved.changes_to(asked)
+        raise ConfigError(
+            f"--resume continues {args.out} as {args.out / CONFIG_FILE} configures it; the "
+            f"options given would change {changed}: leave them out, or start a new run "
+            "in another --out"
+        )
+    return saved
 
 
 def run_command(args: argparse.Namespace) -> int:
     """Runs ``heapgrasp run``; returns the exit status."""
-    from heapgrasp.run import format_summary, run
+    from heapgrasp.run import REFUSED, format_summary, run
 
     try:
         config = config_from_args(args)
@@ -147,7 +171,7 @@ def run_command(args: argparse.Namespace) -> int:
             gui=args.gui,
             viz=args.viz,
         )
-    except (ConfigError, ImportError) as exc:  # before any scene ran
+    except REFUSED as exc:  # before any scene ran
         print(f"heapgrasp run: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

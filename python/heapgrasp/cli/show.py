@@ -8,12 +8,11 @@ against the recorded ones.
 from __future__ import annotations
 
 import argparse
-import json
 import subprocess
 import sys
 from pathlib import Path
 
-from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.config import ConfigError
 
 __all__ = ["add_parser", "show_command"]
 
@@ -49,26 +48,28 @@ def _fail(message: str) -> int:
 
 def show_command(args: argparse.Namespace) -> int:
     """Runs ``heapgrasp show``; returns the exit status."""
-    from heapgrasp.run import CONFIG_FILE, load_records, run_scene
+    from heapgrasp.loop.records import CONFIG_FILE, RecordError, RunDir
+    from heapgrasp.run import run_scene
     from heapgrasp.viz.recorder import import_rerun
 
     run_dir: Path = args.run_dir
-    saved = run_dir / CONFIG_FILE
-    if not saved.is_file():
-        return _fail(f"{run_dir} holds no run ({CONFIG_FILE} not found)")
+    rundir = RunDir(run_dir)
     try:
-        config = RunConfig.from_mapping(json.loads(saved.read_text()), source=str(saved))
+        config = rundir.read_config()
     except ConfigError as exc:
         return _fail(f"{exc} (a run written by another heapgrasp version cannot be replayed)")
-    except json.JSONDecodeError as exc:
-        return _fail(f"{saved}: not valid JSON: {exc}")
+    if config is None:
+        return _fail(f"{run_dir} holds no run ({CONFIG_FILE} not found)")
     if not 0 <= args.scene < config.scenes:
         return _fail(f"--scene {args.scene}: the run has scenes 0 to {config.scenes - 1}")
     try:
         import_rerun()
     except ImportError as exc:
         return _fail(str(exc))
-    recorded = {int(r["scene"]): r for r in load_records(run_dir)}.get(args.scene)
+    try:
+        recorded = {int(r["scene"]): r for r in rundir.records()}.get(args.scene)
+    except RecordError as exc:
+        return _fail(str(exc))
     category = None if recorded is None else recorded.get("category")
     out: Path = args.out or run_dir / "viz" / f"scene-{args.scene:03d}.rrd"
     replay = run_scene(config, args.scene, category=category, record=out)

@@ -413,6 +413,11 @@ class RunConfig:
         """All parameters as plain data (JSON/TOML-ready)."""
         return dataclasses.asdict(self)
 
+    def changes_to(self, other: RunConfig) -> str:
+        """The settings ``other`` changes, as ``"key: mine -> theirs, ..."`` ("" if none)."""
+        mine, theirs = self.to_dict(), other.to_dict()
+        return ", ".join(f"{k}: {mine[k]!r} -> {theirs[k]!r}" for k in mine if mine[k] != theirs[k])
+
 
 @dataclass(frozen=True)
 class ConfigFile:

@@ -20,7 +20,14 @@ from heapgrasp.sim.robot import Robot, SimCamera, SimRobot
 from heapgrasp.sim.truth import SimTruth
 from heapgrasp.sim.world import SimWorld, WorldConfig
 
-__all__ = ["make_body", "object_library", "scene_world", "sim_camera", "sim_pipeline"]
+__all__ = [
+    "make_body",
+    "object_library",
+    "scene_world",
+    "sim_camera",
+    "sim_pipeline",
+    "table_capacity",
+]
 
 
 def object_library(config: RunConfig) -> ObjectLibrary:
@@ -28,6 +35,18 @@ def object_library(config: RunConfig) -> ObjectLibrary:
     if config.object_set == "procedural":
         return ObjectLibrary.default(random_urdfs=0, mug=False, procedural_per_kind=16)
     return ObjectLibrary.default()
+
+
+def table_capacity(config: RunConfig, library: ObjectLibrary | None = None) -> int:
+    """The most objects of ``config``'s split that could stand side by side on the
+    table under the scene cube: its area over the smallest footprint (x by y extent) of
+    the split's objects. A scene of more cannot be placed (piles place far fewer: the
+    rest roll off the table and are removed)."""
+    models = (library or object_library(config)).models(split=config.split)
+    if not models:
+        return 0
+    smallest = min(m.extents[0] * m.extents[1] for m in models)
+    return int(config.cube_size * config.cube_size / smallest)
 
 
 @contextmanager
