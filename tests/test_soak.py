@@ -1,0 +1,26 @@
+"""The kill soak, short (scripts/kill_soak.py; the long one is recorded in
+docs/reliability.md): a run killed with SIGKILL and resumed ends as if never killed."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "kill_soak.py"
+
+
+def test_a_run_killed_and_resumed_ends_as_an_uninterrupted_one(tmp_path: Path) -> None:
+    argv = ["--scenes", "3", "--objects", "2", "--kills", "3", "--max-wait", "4"]
+    done = subprocess.run(
+        [sys.executable, str(SCRIPT), *argv, "--torn", "0.5", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    summary = json.loads((tmp_path / "soak.json").read_text())
+    assert done.returncode == 0, (summary, done.stderr[-2000:])
+    assert summary["scenes_differing"] == [] and summary["results_equal"]
+    assert summary["scenes_recorded"] == 3
