@@ -85,9 +85,7 @@ impl Tracked {
         };
         let spec = grid.spec();
         for (i, (&s, &v)) in grid.segmented().iter().zip(grid.visible()).enumerate() {
-            if region.is_none_or(|r| r[i])
-                && table.contains(s.saturating_add(max_m), v.saturating_add(max_m))
-            {
+            if region.is_none_or(|r| r[i]) && may_end_high(table, s, v, max_m) {
                 tracked.push(i, spec.unflatten(i), s, v);
             }
         }
@@ -205,6 +203,27 @@ pub fn score_views_in(
     Ok(scores.into_iter().flatten().collect())
 }
 
+/// Counts from which f32 no longer holds every integer (`f32(2^24 + 1) = 2^24`).
+const F32_EXACT: u32 = 1 << 24;
+
+/// Whether a voxel with counts `(s, v)` can be in `Ŝ_{≥λ}` after at most `more` further
+/// frames (each adds 1 to `v` if it sees the voxel, and then 0 or 1 to `s`): the test
+/// that prunes voxels, so it must never say no to a voxel that can end high-confidence.
+///
+/// The f32 predicate only grows with `s` and only shrinks with `v` (integer-to-f32
+/// rounding and division are monotone), so the best case adds `a` to both, for some
+/// `a <= more`. While `v + more < 2^24`, f32 holds every count exactly and
+/// `(s + a) / (v + a)` rounds to values non-decreasing in `a` (`s <= v`): `a = more` is
+/// the best case. Beyond, rounding can make fewer frames better (found by fuzzing the
+/// bindings: `s = 15099494`, `v = 2^24`, one frame seeing the voxel without segmenting
+/// it keeps it at `f32(2^24 + 1) / ... >= 0.9`, while `(s + 1) / (v + 2)` rounds below
+/// 0.9), so such a voxel is kept and its final counts decide.
+#[inline]
+fn may_end_high(table: &HighConfidenceTable, s: u32, v: u32, more: u32) -> bool {
+    v.saturating_add(more) >= F32_EXACT
+        || table.contains(s.saturating_add(more), v.saturating_add(more))
+}
+
 /// Per-thread buffers reused across candidates.
 struct Workspace {
     /// (index into `Tracked`, added segmented count, added visible count)
@@ -292,9 +311,11 @@ impl Workspace {
         self.alive.clear();
         for (k, &i) in tracked.flat.iter().enumerate() {
             let (ds, dv) = (self.seg0[i as usize], self.vis0[i as usize]);
-            if table.contains(
-                tracked.seg[k].saturating_add(ds + remaining),
-                tracked.vis[k].saturating_add(dv + remaining),
+            if may_end_high(
+                table,
+                tracked.seg[k].saturating_add(ds),
+                tracked.vis[k].saturating_add(dv),
+                remaining,
             ) {
                 self.alive.push((k as u32, ds as u16, dv as u16));
             }
@@ -365,9 +386,11 @@ impl Workspace {
                     *ds += u16::from(mask[px as usize] != 0);
                 }
                 let k = *k as usize;
-                table.contains(
-                    tracked.seg[k].saturating_add(u32::from(*ds) + remaining),
-                    tracked.vis[k].saturating_add(u32::from(*dv) + remaining),
+                may_end_high(
+                    table,
+                    tracked.seg[k].saturating_add(u32::from(*ds)),
+                    tracked.vis[k].saturating_add(u32::from(*dv)),
+                    remaining,
                 )
             });
         }
@@ -819,5 +842,54 @@ mod tests {
         );
         assert!(score_views(&empty, &scene, &cam, &[vec![]], 0.9).is_err());
         assert!(score_views(&empty, &scene, &cam, &t, 1.5).is_err());
+    }
+
+    /// Found by fuzzing the bindings (issue 36): counts beyond 2^24, where f32 cannot
+    /// hold every integer, broke the pruning's assumption that the best case of the
+    /// remaining frames is all of them segmenting the voxel. With `s = 15099494` and
+    /// `v = 2^24` (occupancy 0.9000000358), a frame that sees the voxel without segmenting
+    /// it leaves it high-confidence (`f32(2^24 + 1) = 2^24`), but the pruning tried
+    /// `(s + 1) / (v + 2)`, which rounds below 0.9, and dropped it: score 1 instead of 0.
+    #[test]
+    fn counts_beyond_f32_integers_are_scored_by_the_definition() {
+        let cam = PinholeCamera::new(1, 1, 2.0, 2.0, 0.0, 0.0).unwrap();
+        let scene = MeshScene::new(); // nothing is ever segmented
+        let spec = GridSpec::new([-0.15, -0.15, 0.0], 0.3, 1).unwrap();
+        let eye = [0.1857, -0.1238, 0.707];
+        let sees = Pose::look_at(eye, [0.0, 0.0, 0.15], [0.0, 0.0, 1.0]).unwrap();
+        let away = Pose::look_at(eye, [eye[0], eye[1], 2.0], [0.0, 1.0, 0.0]).unwrap();
+        let trajectories = vec![
+            vec![away, sees],
+            vec![sees],
+            vec![sees, sees],
+            vec![away, sees, sees],
+            vec![sees, away, away],
+        ];
+        let mut checked = 0;
+        for v in [
+            (1 << 24) - 2,
+            (1 << 24) - 1,
+            1 << 24,
+            (1 << 24) + 1,
+            (1 << 24) + 2,
+        ] {
+            for s in (v as f64 * 0.9) as u32 - 3..=(v as f64 * 0.9) as u32 + 3 {
+                let grid = OccupancyGrid::from_counts(spec, vec![s], vec![v]).unwrap();
+                if grid.count_high_confidence(0.9) == 0 {
+                    continue;
+                }
+                let got = score_views(&grid, &scene, &cam, &trajectories, 0.9).unwrap();
+                for (t, g) in trajectories.iter().zip(&got) {
+                    let want = reference(&grid, &scene, &cam, t, 0.9);
+                    assert_eq!(*g, want, "s = {s}, v = {v}, {} frames", t.len());
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 50, "{checked}");
+        // The case the fuzzer found.
+        let grid = OccupancyGrid::from_counts(spec, vec![15_099_494], vec![1 << 24]).unwrap();
+        let got = score_views(&grid, &scene, &cam, &[vec![away, sees]], 0.9).unwrap();
+        assert_eq!(got, vec![0.0]);
     }
 }
