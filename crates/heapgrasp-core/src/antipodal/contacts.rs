@@ -105,12 +105,10 @@ pub(super) fn quality(
     // Engagement: levels of the pad holding object between the contacts.
     let hi1 = clampi(y_hi + 1, 0, b) as usize;
     let mut levels = 0i64;
-    for dk in cells.z_contact.0..=cells.z_contact.1 {
-        let k = kc + dk;
-        if k < 0 || k >= c {
-            continue;
-        }
-        let k = k as usize;
+    // Only the levels inside the lattice count: scan just those (a gripper can be far
+    // longer than the lattice).
+    for dk in cells.z_contact.0.max(-kc)..=cells.z_contact.1.min(c - 1 - kc) {
+        let k = (kc + dk) as usize;
         if t.c_x.at(icu, hi1, k) > t.c_x.at(icu, y_lo as usize, k) {
             levels += 1;
         }
@@ -153,15 +151,13 @@ pub(super) fn quality(
         let (mut r0, mut r1, mut r2) = (0.0, 0.0, 0.0);
         let mut gsum = [0.0f64; 3];
         let mut level_hit = vec![false; nk];
-        for di in cells.x_fit.0..=cells.x_fit.1 {
+        // The cells of the pad inside the lattice (the others hold nothing).
+        for di in cells.x_fit.0.max(-ic)..=cells.x_fit.1.min(a - 1 - ic) {
             let on_pad = di >= cells.x_pad.0 && di <= cells.x_pad.1;
             let i3 = ic + di;
-            for (kn, dk) in (cells.z_contact.0..=cells.z_contact.1).enumerate() {
+            for dk in cells.z_contact.0.max(-kc)..=cells.z_contact.1.min(c - 1 - kc) {
+                let kn = (dk - cells.z_contact.0) as usize;
                 let k3 = kc + dk;
-                let inside = i3 >= 0 && i3 < a && k3 >= 0 && k3 < c;
-                if !inside {
-                    continue;
-                }
                 let (iu, ku) = (i3 as usize, k3 as usize);
                 let row = i64::from(table.at(iu, ext as usize, ku));
                 let depth_in = sgn * (row - ext);

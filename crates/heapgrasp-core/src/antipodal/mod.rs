@@ -24,6 +24,7 @@
 mod contacts;
 mod lattice;
 
+use crate::camera::RIGID_TOLERANCE;
 use crate::error::{Error, Result};
 use crate::parallel;
 use crate::rounding::{ceil_fast, floor_fast};
@@ -60,6 +61,10 @@ pub struct GripperCells {
 
 /// Widening (cells) of the finger pad over which the contact plane is fitted.
 const FIT_MARGIN: i64 = 1;
+
+/// Largest gripper length, in voxels, that [`best_grasps`] accepts (a Panda hand is
+/// about 300 voxels long on the finest 512³ grid of 0.30 m).
+pub const MAX_GRIPPER_CELLS: i64 = 1 << 16;
 
 /// Lattice offsets (inclusive range) whose cell centre lies in `[lo, hi]`.
 fn cell_range(lo: f64, hi: f64, v: f64) -> CellRange {
@@ -234,6 +239,37 @@ impl AntipodalParams {
         if !(self.max_opening > 0.0) {
             return Err(Error::value("max_opening", self.max_opening, "must be > 0"));
         }
+        // The gripper goes on the lattice as cell offsets: keep every length (all fields
+        // but the voxel size, the two world heights and the dimensionless ones) within
+        // MAX_GRIPPER_CELLS voxels, so that no offset overflows and no scan runs for ages.
+        let limit = MAX_GRIPPER_CELLS as f64 * self.voxel_size;
+        let dimensionless = [
+            "voxel_size",
+            "origin_z",
+            "table_z",
+            "ledge_factor",
+            "friction_angle",
+        ];
+        for (name, x) in fields {
+            if !dimensionless.contains(&name) && !(x.abs() <= limit) {
+                return Err(Error::value(
+                    name,
+                    x,
+                    format!(
+                        "a gripper length must be at most {MAX_GRIPPER_CELLS} voxels \
+                         ({limit:.3e} m at voxel_size {})",
+                        self.voxel_size
+                    ),
+                ));
+            }
+        }
+        if !(0..=i64::from(u32::MAX)).contains(&self.min_patch) {
+            return Err(Error::value(
+                "min_patch",
+                self.min_patch,
+                "must be between 0 and 2**32 - 1 cells",
+            ));
+        }
         Ok(())
     }
 }
@@ -324,7 +360,10 @@ type Found = Vec<(usize, f64, f64)>;
 ///
 /// # Errors
 /// [`Error::Shape`] for arrays of the wrong length, [`Error::Value`] /
-/// [`Error::NonFinite`] for invalid parameters, labels, candidates or rotations.
+/// [`Error::NonFinite`] for invalid parameters (a gripper length beyond
+/// [`MAX_GRIPPER_CELLS`] voxels included), labels, candidates, rotations or tilts;
+/// [`Error::NotRigid`] for a rotation that is not orthonormal with det +1 (within
+/// [`RIGID_TOLERANCE`]).
 pub fn best_grasps(
     scene: &AntipodalScene<'_>,
     params: &AntipodalParams,
@@ -347,6 +386,24 @@ pub fn best_grasps(
         return Err(Error::NonFinite {
             name: "rotations".into(),
             position: format!("[{k}]"),
+        });
+    }
+    if let Some(k) = tilts.iter().position(|t| !t.is_finite()) {
+        return Err(Error::NonFinite {
+            name: "tilts".into(),
+            position: format!("[{k}]"),
+        });
+    }
+    // A matrix that is not a rotation would stretch the lattice without bound.
+    if let Some((k, ortho, det)) = rotations.iter().enumerate().find_map(|(k, m)| {
+        let (ortho, det) = rotation_error(m);
+        (ortho > RIGID_TOLERANCE || (det - 1.0).abs() > RIGID_TOLERANCE).then_some((k, ortho, det))
+    }) {
+        return Err(Error::NotRigid {
+            name: format!("rotations[{k}]"),
+            reason: format!(
+                "must be orthonormal with det +1 (max |R^T R - I| = {ortho:.3e}, det = {det:.6})"
+            ),
         });
     }
     let cells = &GripperCells::from_params(params);
@@ -395,6 +452,22 @@ pub fn best_grasps(
         }
     }
     Ok(best)
+}
+
+/// `(max |RᵀR - I|, det R)` of a 3 × 3 matrix given by rows.
+fn rotation_error(m: &[[f64; 3]; 3]) -> (f64, f64) {
+    let mut ortho = 0.0f64;
+    for i in 0..3 {
+        for j in 0..3 {
+            let dot: f64 = (0..3).map(|k| m[k][i] * m[k][j]).sum();
+            let want = if i == j { 1.0 } else { 0.0 };
+            ortho = ortho.max((dot - want).abs());
+        }
+    }
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    (ortho, det)
 }
 
 /// `y0` up to `x0`, `y1` from `x1`, linear in between.

@@ -124,3 +124,93 @@ fn bad_input_is_an_error_not_a_panic() {
     let err = run(&b, &[[10, 10, 4]], &[nan]).expect_err("NaN rotation");
     assert!(err.to_string().contains("rotations"), "{err}");
 }
+
+/// `run` with other planner parameters and tilts.
+fn run_with(
+    b: &Box,
+    params: &AntipodalParams,
+    rots: &[[[f64; 3]; 3]],
+    tilts: &[f64],
+) -> Result<BestGrasps> {
+    let grad = vec![0.0; 3 * R * R * R];
+    let centroids = [[0.0; 3], b.centroid];
+    let scene = AntipodalScene {
+        resolution: R,
+        occupied: &b.occ,
+        gradient: &grad,
+        labels: &b.labels,
+        centroids: &centroids,
+        candidates: &[[10, 10, 4]],
+    };
+    best_grasps(&scene, params, rots, tilts)
+}
+
+/// Found by fuzzing the bindings (issue 36): a gripper length of 1e300 m, or a voxel of
+/// 1e-300 m, overflowed the lattice offsets (index out of bounds, a panic), and a palm
+/// 1e298 m deep looped for ever. Lengths beyond MAX_GRIPPER_CELLS voxels are refused.
+#[test]
+fn extreme_gripper_lengths_are_refused_not_a_panic_or_a_hang() {
+    let b = boxed([8, 7, 0], [12, 13, 6]);
+    type Change = fn(&mut AntipodalParams);
+    let cases: [(&str, Change); 5] = [
+        ("tip_thickness", |p| p.tip_thickness *= 1e300),
+        ("base_thickness", |p| p.base_thickness *= 1e300),
+        ("palm_front", |p| p.palm_front *= 1e300),
+        ("finger_width", |p| p.finger_width *= 1e300),
+        ("max_opening", |p| p.voxel_size *= 1e-300), // the first length checked
+    ];
+    for (name, change) in cases {
+        let mut p = AntipodalParams::panda(V, 0.0);
+        change(&mut p);
+        let err = run_with(&b, &p, &[top_down()], &[0.0]).expect_err(name);
+        assert!(
+            matches!(err, Error::Value { name: ref n, .. } if n == name),
+            "{name}: {err}"
+        );
+    }
+    let mut p = AntipodalParams::panda(V, 0.0);
+    p.min_patch = i64::MAX;
+    let err = run_with(&b, &p, &[top_down()], &[0.0]).expect_err("min_patch");
+    assert!(err.to_string().contains("min_patch"), "{err}");
+}
+
+/// A gripper far longer than the lattice (but within the limit) costs the lattice's
+/// cells, not the gripper's: the pad scans are clipped to the lattice.
+#[test]
+fn a_gripper_much_longer_than_the_lattice_is_scanned_quickly() {
+    let b = boxed([8, 7, 0], [12, 13, 6]);
+    let mut p = AntipodalParams::panda(V, 0.0);
+    let far = 0.9 * MAX_GRIPPER_CELLS as f64 * V;
+    (p.palm_front, p.finger_width) = (-far, far);
+    let start = std::time::Instant::now();
+    let best = run_with(&b, &p, &[top_down()], &[0.0]).expect("valid input");
+    assert!(start.elapsed().as_secs_f64() < 5.0, "{:?}", start.elapsed());
+    assert!((0.0..=1.0).contains(&best.quality[0]));
+}
+
+/// Found by fuzzing the bindings: a finite matrix that is not a rotation (entries of
+/// 1e300) sized the lattice from its stretched extent (a huge allocation); a NaN tilt
+/// gave a NaN quality. Both are refused.
+#[test]
+fn non_rotations_and_non_finite_tilts_are_refused() {
+    let b = boxed([8, 7, 0], [12, 13, 6]);
+    let p = AntipodalParams::panda(V, 0.0);
+    let mut stretched = top_down();
+    stretched[0][0] = 1e300;
+    let err = run_with(&b, &p, &[top_down(), stretched], &[0.0, 0.0]).expect_err("stretched");
+    assert!(
+        matches!(err, Error::NotRigid { ref name, .. } if name == "rotations[1]"),
+        "{err}"
+    );
+    let mut reflected = top_down();
+    reflected[0][0] = 1.0;
+    let err = run_with(&b, &p, &[reflected], &[0.0]).expect_err("reflection");
+    assert!(matches!(err, Error::NotRigid { .. }), "{err}");
+    for t in [f64::NAN, f64::INFINITY] {
+        let err = run_with(&b, &p, &[top_down()], &[t]).expect_err("tilt");
+        assert!(
+            matches!(err, Error::NonFinite { ref name, .. } if name == "tilts"),
+            "{err}"
+        );
+    }
+}
