@@ -74,8 +74,16 @@ impl VoxelLattice {
                 "must be finite and > 0 metres",
             ));
         }
+        let side = voxel_size * resolution.max(1) as f64;
+        if !side.is_finite() {
+            return Err(Error::value(
+                "voxel_size",
+                voxel_size,
+                format!("times the resolution ({resolution}) must be finite"),
+            ));
+        }
         // The origin and the resolution are checked as any grid's are.
-        GridSpec::new(origin, voxel_size * resolution.max(1) as f64, resolution)?;
+        GridSpec::new(origin, side, resolution)?;
         Ok(Self {
             origin,
             voxel_size,

@@ -232,6 +232,18 @@ fn bad_shapes_name_the_argument() {
 }
 
 #[test]
+fn a_voxel_size_whose_grid_side_overflows_is_named() {
+    // 1e308 per voxel is finite, but 2 voxels are not: the error names voxel_size (the
+    // argument), not the grid's side.
+    let err = VoxelLattice::new([0.0; 3], 1e308, 2).unwrap_err();
+    assert!(
+        matches!(err, Error::Value { ref name, .. } if name == "voxel_size"),
+        "{err}"
+    );
+    assert!(VoxelLattice::new([0.0; 3], 1e308, 1).is_ok());
+}
+
+#[test]
 fn footprints_cover_the_projected_sphere() {
     let cam = camera();
     let p = poses()[1];
