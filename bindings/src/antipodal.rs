@@ -1,43 +1,58 @@
 //! `antipodal_grasps`.
 
 use heapgrasp_core::antipodal::{self, AntipodalParams, AntipodalScene};
+use heapgrasp_core::Error;
 use numpy::PyArray1;
+use pyo3::exceptions::PyKeyError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::PyMapping;
 
-use crate::convert::{array_arg, detached};
-use crate::errors::{InvalidValueError, ShapeError};
+use crate::convert::{array_arg, bool_arg, floats_arg, is_bool, shape_str, type_name};
+use crate::errors::{CoreError, InvalidValueError, ShapeError};
 
-fn item<'py>(d: &Bound<'py, PyDict>, dict: &str, key: &str) -> PyResult<Bound<'py, PyAny>> {
-    d.get_item(key)?
-        .ok_or_else(|| InvalidValueError::new_err(format!("{dict}: missing key {key:?}")))
-}
-
-fn float(d: &Bound<'_, PyDict>, dict: &str, key: &str) -> PyResult<f64> {
-    item(d, dict, key)?
-        .extract::<f64>()
-        .map_err(|_| InvalidValueError::new_err(format!("{dict}[{key:?}]: expected a number")))
-}
-
-fn int(d: &Bound<'_, PyDict>, dict: &str, key: &str) -> PyResult<i64> {
-    item(d, dict, key)?
-        .extract::<i64>()
-        .map_err(|_| InvalidValueError::new_err(format!("{dict}[{key:?}]: expected an int")))
-}
-
-fn pair<T: for<'a, 'py> FromPyObject<'a, 'py>>(
-    d: &Bound<'_, PyDict>,
-    dict: &str,
-    key: &str,
-) -> PyResult<(T, T)> {
-    item(d, dict, key)?.extract::<(T, T)>().map_err(|_| {
-        InvalidValueError::new_err(format!("{dict}[{key:?}]: expected a pair of numbers"))
+/// `params[key]`; a missing key raises `InvalidValueError` naming it.
+fn item<'py>(d: &Bound<'py, PyMapping>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+    d.get_item(key).map_err(|e| {
+        if e.is_instance_of::<PyKeyError>(d.py()) {
+            InvalidValueError::new_err(format!("params: missing key {key:?}"))
+        } else {
+            e
+        }
     })
 }
 
-fn planner_params(d: &Bound<'_, PyDict>) -> PyResult<AntipodalParams> {
-    let f = |k: &str| float(d, "params", k);
-    let half = |k: &str| pair::<f64>(d, "params", k).map(|(x, y)| [x, y]);
+fn float(d: &Bound<'_, PyMapping>, key: &str) -> PyResult<f64> {
+    let v = item(d, key)?;
+    let bad = || InvalidValueError::new_err(format!("params[{key:?}]: expected a number"));
+    if is_bool(&v) {
+        return Err(bad());
+    }
+    v.extract::<f64>().map_err(|_| bad())
+}
+
+fn int(d: &Bound<'_, PyMapping>, key: &str) -> PyResult<i64> {
+    let v = item(d, key)?;
+    let bad = || InvalidValueError::new_err(format!("params[{key:?}]: expected an int"));
+    if is_bool(&v) {
+        return Err(bad());
+    }
+    v.extract::<i64>().map_err(|_| bad())
+}
+
+fn pair(d: &Bound<'_, PyMapping>, key: &str) -> PyResult<[f64; 2]> {
+    floats_arg::<2>(&item(d, key)?, "").map_err(|_| {
+        InvalidValueError::new_err(format!("params[{key:?}]: expected a pair of numbers"))
+    })
+}
+
+fn planner_params(d: &Bound<'_, PyAny>) -> PyResult<AntipodalParams> {
+    let d = d.cast::<PyMapping>().map_err(|_| {
+        InvalidValueError::new_err(format!(
+            "params: expected a mapping of names to numbers, got {}",
+            type_name(d)
+        ))
+    })?;
+    let f = |k: &str| float(d, k);
     Ok(AntipodalParams {
         voxel_size: f("voxel_size")?,
         origin_z: f("origin_z")?,
@@ -53,19 +68,76 @@ fn planner_params(d: &Bound<'_, PyDict>) -> PyResult<AntipodalParams> {
         palm_front: f("palm_front")?,
         palm_split: f("palm_split")?,
         palm_back: f("palm_back")?,
-        palm_front_half: half("palm_front_half")?,
-        palm_back_half: half("palm_back_half")?,
+        palm_front_half: pair(d, "palm_front_half")?,
+        palm_back_half: pair(d, "palm_back_half")?,
         pregrasp_distance: f("pregrasp_distance")?,
         table_z: f("table_z")?,
         table_clearance: f("table_clearance")?,
         min_depth: f("min_depth")?,
         target_depth: f("target_depth")?,
-        min_patch: int(d, "params", "min_patch")?,
+        min_patch: int(d, "min_patch")?,
         min_contact_height: f("min_contact_height")?,
         ledge_factor: f("ledge_factor")?,
         friction_angle: f("friction_angle")?,
     })
 }
+
+/// The core names a bad parameter by its field (`max_opening`, `palm_front_half[0]`);
+/// the caller passed it as `params["max_opening"]`.
+fn in_params(e: Error) -> PyErr {
+    let key = |name: &str| {
+        let (field, index) = name.split_once('[').map_or((name, ""), |(f, i)| (f, i));
+        if index.is_empty() {
+            format!("params[{field:?}]")
+        } else {
+            format!("params[{field:?}][{index}")
+        }
+    };
+    match e {
+        Error::Value {
+            name,
+            value,
+            reason,
+        } if PARAM_NAMES.contains(&name.split('[').next().unwrap_or("")) => {
+            CoreError(Error::Value {
+                name: key(&name),
+                value,
+                reason,
+            })
+            .into()
+        }
+        e => CoreError(e).into(),
+    }
+}
+
+/// The keys of `params`.
+const PARAM_NAMES: [&str; 25] = [
+    "voxel_size",
+    "origin_z",
+    "max_opening",
+    "opening_margin",
+    "clearance",
+    "finger_width",
+    "finger_tip",
+    "finger_base",
+    "finger_split",
+    "tip_thickness",
+    "base_thickness",
+    "palm_front",
+    "palm_split",
+    "palm_back",
+    "palm_front_half",
+    "palm_back_half",
+    "pregrasp_distance",
+    "table_z",
+    "table_clearance",
+    "min_depth",
+    "target_depth",
+    "min_patch",
+    "min_contact_height",
+    "ledge_factor",
+    "friction_angle",
+];
 
 /// Each candidate's best antipodal grasp over `rotations` (K, 3, 3) with `tilts` (K,):
 /// (quality float64 (N,), orientation index int64 (N,), width float64 (N,)).
@@ -81,23 +153,30 @@ pub fn antipodal_grasps<'py>(
     candidates: &Bound<'py, PyAny>,
     rotations: &Bound<'py, PyAny>,
     tilts: &Bound<'py, PyAny>,
-    params: &Bound<'py, PyDict>,
+    params: &Bound<'py, PyAny>,
 ) -> PyResult<(
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<i64>>,
     Bound<'py, PyArray1<f64>>,
 )> {
-    let occ = array_arg::<bool>(occupied, "occupied", "bool", Some(3))?;
-    let r = occ.shape[0];
+    let occ = bool_arg(occupied, "occupied", 3)?;
+    let r = occ.shape()[0];
     let cube = |name: &str, shape: &[usize], want: &[usize]| -> PyResult<()> {
         if shape != want {
             return Err(ShapeError::new_err(format!(
-                "{name}: expected shape {want:?}, got {shape:?}"
+                "{name}: expected shape {}, got {}",
+                shape_str(want),
+                shape_str(shape)
             )));
         }
         Ok(())
     };
-    cube("occupied", &occ.shape, &[r, r, r])?;
+    cube("occupied", occ.shape(), &[r, r, r])?;
+    if r == 0 {
+        return Err(ShapeError::new_err(
+            "occupied: expected an (R, R, R) volume with R >= 1, got shape (0, 0, 0)",
+        ));
+    }
     let grad = array_arg::<f64>(gradient, "gradient", "float64", Some(4))?;
     cube("gradient", &grad.shape, &[3, r, r, r])?;
     let lab = array_arg::<i32>(labels, "labels", "int32", Some(3))?;
@@ -141,17 +220,19 @@ pub fn antipodal_grasps<'py>(
         lab.as_slice(),
         tilt.as_slice(),
     );
-    let best = detached(py, move || {
-        let scene = AntipodalScene {
-            resolution: r,
-            occupied: occ_s,
-            gradient: grad_s,
-            labels: lab_s,
-            centroids: &cen_rows,
-            candidates: &cand_idx,
-        };
-        antipodal::best_grasps(&scene, &params, &rots, tilt_s)
-    })?;
+    let best = py
+        .detach(move || {
+            let scene = AntipodalScene {
+                resolution: r,
+                occupied: occ_s,
+                gradient: grad_s,
+                labels: lab_s,
+                centroids: &cen_rows,
+                candidates: &cand_idx,
+            };
+            antipodal::best_grasps(&scene, &params, &rots, tilt_s)
+        })
+        .map_err(in_params)?;
     let orientation: Vec<i64> = best.orientation.into_iter().map(|k| k as i64).collect();
     Ok((
         PyArray1::from_vec(py, best.quality),

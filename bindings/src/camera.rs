@@ -3,7 +3,7 @@
 use heapgrasp_core::PinholeCamera;
 use pyo3::prelude::*;
 
-use crate::convert::int_arg;
+use crate::convert::{int_arg, named};
 use crate::errors::IntoPyResult;
 
 /// An ideal pinhole camera (no distortion); OpenCV axes, pixel centres at integers.
@@ -26,10 +26,10 @@ impl PyPinholeCamera {
     fn new(
         width: &Bound<'_, PyAny>,
         height: &Bound<'_, PyAny>,
-        fx: f64,
-        fy: f64,
-        cx: f64,
-        cy: f64,
+        #[pyo3(from_py_with = named::fx)] fx: f64,
+        #[pyo3(from_py_with = named::fy)] fy: f64,
+        #[pyo3(from_py_with = named::cx)] cx: f64,
+        #[pyo3(from_py_with = named::cy)] cy: f64,
     ) -> PyResult<Self> {
         let side = |name: &str, v: &Bound<'_, PyAny>| -> PyResult<u32> {
             let max = i64::from(heapgrasp_core::camera::MAX_IMAGE_SIDE);

@@ -4,17 +4,17 @@ use heapgrasp_core::{filter, nms};
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::prelude::*;
 
-use crate::convert::{array_arg, detached, int_arg, ArrayArg};
+use crate::convert::{array_arg, detached, int_arg, named, shape_str, ArrayArg};
 use crate::errors::ShapeError;
 use crate::occupancy::volume as to_volume;
 
 fn cube<'py>(obj: &Bound<'py, PyAny>) -> PyResult<(ArrayArg<'py, f32>, usize)> {
     let v = array_arg::<f32>(obj, "volume", "float32", Some(3))?;
     let r = v.shape[0];
-    if v.shape != [r, r, r] {
+    if v.shape != [r, r, r] || r == 0 {
         return Err(ShapeError::new_err(format!(
-            "volume: expected a cubic (R, R, R) array, got {:?}",
-            v.shape
+            "volume: expected a cubic (R, R, R) array with R >= 1, got shape {}",
+            shape_str(&v.shape)
         )));
     }
     Ok((v, r))
@@ -38,7 +38,7 @@ fn window_arg(window: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
 pub fn gaussian_filter3d<'py>(
     py: Python<'py>,
     volume: &Bound<'py, PyAny>,
-    sigma: f64,
+    #[pyo3(from_py_with = named::sigma)] sigma: f64,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     let (v, r) = cube(volume)?;
     let data = v.as_slice();
@@ -67,7 +67,7 @@ pub fn maximum_filter3d<'py>(
 pub fn nms3d<'py>(
     py: Python<'py>,
     volume: &Bound<'py, PyAny>,
-    threshold: f64,
+    #[pyo3(from_py_with = named::threshold)] threshold: f64,
     window: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyArray2<i64>>> {
     let window = window_arg(window)?;

@@ -1,15 +1,15 @@
 //! `OccupancyGrid`.
 
 use heapgrasp_core::occupancy::check_lambda;
-use heapgrasp_core::{GridSpec, OccupancyGrid};
+use heapgrasp_core::{GridSpec, OccupancyGrid, PinholeCamera};
 use numpy::{PyArray1, PyArray3, PyArrayMethods};
 use pyo3::prelude::*;
 
-use crate::camera::PyPinholeCamera;
 use crate::convert::{
-    array_arg, check_tail, detached, int_arg, mask_arg, pose_arg, poses_arg, vec3_arg,
+    array_arg, check_tail, detached, int_arg, mask_arg, named, pose_arg, poses_arg, shape_str,
+    vec3_arg,
 };
-use crate::errors::{IntoPyResult, ShapeError};
+use crate::errors::{IntoPyResult, InvalidValueError, ShapeError};
 
 /// `(segmented, visible)` count volumes.
 type CountArrays<'py> = (Bound<'py, PyArray3<u32>>, Bound<'py, PyArray3<u32>>);
@@ -55,7 +55,7 @@ impl PyOccupancyGrid {
     #[pyo3(signature = (origin, size = 0.30, resolution = None))]
     fn new(
         origin: &Bound<'_, PyAny>,
-        size: f64,
+        #[pyo3(from_py_with = named::size)] size: f64,
         resolution: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         Ok(Self {
@@ -90,11 +90,11 @@ impl PyOccupancyGrid {
         &mut self,
         py: Python<'_>,
         mask: &Bound<'_, PyAny>,
-        camera: &PyPinholeCamera,
+        #[pyo3(from_py_with = named::camera)] camera: PinholeCamera,
         cam2world: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let m = mask_arg(mask, "mask", 2)?;
-        let cam = camera.inner;
+        let cam = camera;
         check_tail(
             "mask",
             m.shape(),
@@ -115,7 +115,7 @@ impl PyOccupancyGrid {
         &mut self,
         py: Python<'_>,
         masks: &Bound<'_, PyAny>,
-        camera: &PyPinholeCamera,
+        #[pyo3(from_py_with = named::camera)] camera: PinholeCamera,
         cam2worlds: &Bound<'_, PyAny>,
         threads: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
@@ -130,7 +130,7 @@ impl PyOccupancyGrid {
             )? as usize),
         };
         let m = mask_arg(masks, "masks", 3)?;
-        let cam = camera.inner;
+        let cam = camera;
         check_tail(
             "masks",
             m.shape(),
@@ -175,7 +175,7 @@ impl PyOccupancyGrid {
     fn high_confidence<'py>(
         &self,
         py: Python<'py>,
-        lam: f64,
+        #[pyo3(from_py_with = named::lam)] lam: f64,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let lam = check_lambda(lam).py()?;
         let r = self.inner.spec().resolution();
@@ -186,7 +186,10 @@ impl PyOccupancyGrid {
 
     /// Number of non-zero voxels of the high-confidence grid.
     #[pyo3(signature = (lam = 0.9))]
-    fn count_high_confidence(&self, lam: f64) -> PyResult<usize> {
+    fn count_high_confidence(
+        &self,
+        #[pyo3(from_py_with = named::lam)] lam: f64,
+    ) -> PyResult<usize> {
         Ok(self.inner.count_high_confidence(check_lambda(lam).py()?))
     }
 
@@ -215,7 +218,7 @@ impl PyOccupancyGrid {
     #[pyo3(signature = (origin, size, segmented, visible))]
     fn from_counts(
         origin: &Bound<'_, PyAny>,
-        size: f64,
+        #[pyo3(from_py_with = named::size)] size: f64,
         segmented: &Bound<'_, PyAny>,
         visible: &Bound<'_, PyAny>,
     ) -> PyResult<Self> {
@@ -224,8 +227,16 @@ impl PyOccupancyGrid {
         let r = s.shape[0];
         if s.shape != [r, r, r] || v.shape != s.shape {
             return Err(ShapeError::new_err(format!(
-                "segmented, visible: expected two cubic (R, R, R) arrays of one shape, got {:?} and {:?}",
-                s.shape, v.shape
+                "segmented, visible: expected two cubic (R, R, R) arrays of one shape, got {} and {}",
+                shape_str(&s.shape),
+                shape_str(&v.shape)
+            )));
+        }
+        let max = heapgrasp_core::grid::MAX_RESOLUTION;
+        if r == 0 || r > max {
+            return Err(InvalidValueError::new_err(format!(
+                "segmented, visible: a grid has 1 to {max} voxels per axis, got shape {}",
+                shape_str(&s.shape)
             )));
         }
         let spec = GridSpec::new(vec3_arg(origin, "origin")?, size, r).py()?;

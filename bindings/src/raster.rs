@@ -1,11 +1,12 @@
 //! `MeshScene`.
 
-use heapgrasp_core::MeshScene;
+use heapgrasp_core::{MeshScene, PinholeCamera};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 
-use crate::camera::PyPinholeCamera;
-use crate::convert::{array_arg, check_tail, has_dtype, pose_arg, vec3_arg};
+use crate::convert::{
+    array_arg, check_tail, has_dtype, is_bool, named, pose_arg, short_repr, vec3_arg,
+};
 use crate::errors::{IntoPyResult, MeshError, UnknownMeshError};
 
 /// Rigid triangle meshes with world poses: ground-truth silhouettes, depth and labels.
@@ -16,10 +17,10 @@ pub struct PyMeshScene {
 
 fn image<'py, T: numpy::Element>(
     py: Python<'py>,
-    cam: &PyPinholeCamera,
+    cam: &PinholeCamera,
     data: Vec<T>,
 ) -> PyResult<Bound<'py, PyArray2<T>>> {
-    PyArray1::from_vec(py, data).reshape([cam.inner.height as usize, cam.inner.width as usize])
+    PyArray1::from_vec(py, data).reshape([cam.height as usize, cam.width as usize])
 }
 
 /// Face indices as u32 from an int64, int32 or uint32 `(F, 3)` array.
@@ -57,13 +58,13 @@ fn faces_arg(faces: &Bound<'_, PyAny>) -> PyResult<Vec<u32>> {
     Ok(f.as_slice().to_vec())
 }
 
+/// A mesh id: an int (not a bool); anything else is an id the scene does not hold.
 fn id_arg(id: &Bound<'_, PyAny>) -> PyResult<u64> {
-    let v: i64 = id.extract().map_err(|_| {
-        UnknownMeshError::new_err(format!(
-            "unknown mesh id {}",
-            id.repr().map(|r| r.to_string()).unwrap_or_default()
-        ))
-    })?;
+    let unknown = || UnknownMeshError::new_err(format!("unknown mesh id {}", short_repr(id)));
+    if is_bool(id) {
+        return Err(unknown());
+    }
+    let v: i64 = id.extract().map_err(|_| unknown())?;
     u64::try_from(v).map_err(|_| UnknownMeshError::new_err(format!("unknown mesh id {v}")))
 }
 
@@ -136,39 +137,39 @@ impl PyMeshScene {
     fn render_mask<'py>(
         &self,
         py: Python<'py>,
-        camera: &PyPinholeCamera,
+        #[pyo3(from_py_with = named::camera)] camera: PinholeCamera,
         cam2world: &Bound<'_, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<bool>>> {
         let pose = pose_arg(cam2world, "cam2world")?;
-        let (scene, cam) = (&self.inner, camera.inner);
+        let (scene, cam) = (&self.inner, camera);
         let mask = py.detach(|| scene.render_mask(&cam, &pose));
-        image(py, camera, mask.into_iter().map(|m| m != 0).collect())
+        image(py, &camera, mask.into_iter().map(|m| m != 0).collect())
     }
 
     /// Depth (camera z of the nearest hit, metres; 0 where nothing is hit), float32 (H, W).
     fn render_depth<'py>(
         &self,
         py: Python<'py>,
-        camera: &PyPinholeCamera,
+        #[pyo3(from_py_with = named::camera)] camera: PinholeCamera,
         cam2world: &Bound<'_, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let pose = pose_arg(cam2world, "cam2world")?;
-        let (scene, cam) = (&self.inner, camera.inner);
+        let (scene, cam) = (&self.inner, camera);
         let depth = py.detach(|| scene.render_depth(&cam, &pose));
-        image(py, camera, depth)
+        image(py, &camera, depth)
     }
 
     /// Id of the nearest mesh per pixel (0 = background), uint32 (H, W).
     fn render_labels<'py>(
         &self,
         py: Python<'py>,
-        camera: &PyPinholeCamera,
+        #[pyo3(from_py_with = named::camera)] camera: PinholeCamera,
         cam2world: &Bound<'_, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<u32>>> {
         let pose = pose_arg(cam2world, "cam2world")?;
-        let (scene, cam) = (&self.inner, camera.inner);
+        let (scene, cam) = (&self.inner, camera);
         let (_, labels) = py.detach(|| scene.render_depth_labels(&cam, &pose));
-        image(py, camera, labels)
+        image(py, &camera, labels)
     }
 
     /// First hit of a world-frame ray: `(distance, id)` or None.

@@ -1,15 +1,15 @@
 //! `score_views`.
 
-use heapgrasp_core::score;
+use heapgrasp_core::{score, PinholeCamera};
 use numpy::PyArray1;
 use pyo3::prelude::*;
-use pyo3::types::PyList;
 
-use crate::camera::PyPinholeCamera;
-use crate::convert::{check_tail, detached, mask_arg, poses_arg};
-use crate::errors::ShapeError;
+use crate::convert::{check_tail, detached, instance_arg, items_arg, mask_arg, named, poses_arg};
 use crate::occupancy::PyOccupancyGrid;
 use crate::raster::PyMeshScene;
+
+/// Most trajectories one call scores (a lazy iterable beyond it is refused, not drained).
+pub const MAX_TRAJECTORIES: usize = 1 << 16;
 
 /// Exact eq. 14 view scores, float32 (K,); with `region` ((R, R, R) bool or uint8)
 /// both counts are restricted to it.
@@ -17,13 +17,15 @@ use crate::raster::PyMeshScene;
 #[pyo3(signature = (grid, scene, camera, trajectories, lam = 0.9, region = None))]
 pub fn score_views<'py>(
     py: Python<'py>,
-    grid: &PyOccupancyGrid,
-    scene: &PyMeshScene,
-    camera: &PyPinholeCamera,
+    grid: &Bound<'py, PyAny>,
+    scene: &Bound<'py, PyAny>,
+    #[pyo3(from_py_with = named::camera)] camera: PinholeCamera,
     trajectories: &Bound<'py, PyAny>,
-    lam: f64,
+    #[pyo3(from_py_with = named::lam)] lam: f64,
     region: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+    let grid = instance_arg::<PyOccupancyGrid>(grid, "grid", "an OccupancyGrid")?;
+    let scene = instance_arg::<PyMeshScene>(scene, "scene", "a MeshScene")?;
     let region: Option<Vec<bool>> = match region {
         None => None,
         Some(obj) => {
@@ -33,21 +35,19 @@ pub fn score_views<'py>(
             Some(m.bytes().iter().map(|&b| b != 0).collect())
         }
     };
-    let items: Vec<Bound<'py, PyAny>> = match trajectories.cast::<PyList>() {
-        Ok(list) => list.iter().collect(),
-        Err(_) => trajectories
-            .try_iter()
-            .map_err(|_| {
-                ShapeError::new_err("trajectories: expected a sequence of (M, 4, 4) float64 arrays")
-            })?
-            .collect::<PyResult<_>>()?,
-    };
+    let items = items_arg(
+        trajectories,
+        "trajectories",
+        MAX_TRAJECTORIES,
+        "(M, 4, 4) float64 arrays",
+        &format!("at most {MAX_TRAJECTORIES} trajectories"),
+    )?;
     let trajs = items
         .iter()
         .enumerate()
         .map(|(k, t)| poses_arg(t, &format!("trajectories[{k}]")))
         .collect::<PyResult<Vec<_>>>()?;
-    let (g, s, cam) = (&grid.inner, &scene.inner, camera.inner);
+    let (g, s, cam) = (&grid.inner, &scene.inner, camera);
     let scores = detached(py, move || {
         score::score_views_in(g, s, &cam, &trajs, lam, region.as_deref())
     })?;

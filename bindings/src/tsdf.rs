@@ -1,11 +1,11 @@
 //! `TSDFVolume`.
 
 use heapgrasp_core::tsdf::TsdfVolume;
+use heapgrasp_core::PinholeCamera;
 use numpy::PyArray3;
 use pyo3::prelude::*;
 
-use crate::camera::PyPinholeCamera;
-use crate::convert::{array_arg, check_tail, detached, pose_arg};
+use crate::convert::{array_arg, check_tail, detached, named, pose_arg};
 use crate::errors::IntoPyResult;
 use crate::occupancy::{spec_args, volume};
 
@@ -21,9 +21,9 @@ impl PyTsdfVolume {
     #[pyo3(signature = (origin, size = 0.30, resolution = None, truncation = 0.03))]
     fn new(
         origin: &Bound<'_, PyAny>,
-        size: f64,
+        #[pyo3(from_py_with = named::size)] size: f64,
         resolution: Option<&Bound<'_, PyAny>>,
-        truncation: f64,
+        #[pyo3(from_py_with = named::truncation)] truncation: f64,
     ) -> PyResult<Self> {
         let spec = spec_args(origin, size, resolution)?;
         Ok(Self {
@@ -58,11 +58,11 @@ impl PyTsdfVolume {
         &mut self,
         py: Python<'_>,
         depth_m: &Bound<'_, PyAny>,
-        camera: &PyPinholeCamera,
+        #[pyo3(from_py_with = named::camera)] camera: PinholeCamera,
         cam2world: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let d = array_arg::<f32>(depth_m, "depth_m", "float32", Some(2))?;
-        let cam = camera.inner;
+        let cam = camera;
         check_tail(
             "depth_m",
             &d.shape,

@@ -6,7 +6,14 @@ Conventions: poses are ``(4, 4)`` float64 rigid ``a2b`` matrices (``cam2world``,
 images and masks are ``(H, W)`` indexed ``[v, u]``. A grid is a cube (``origin`` = min
 corner, ``size``, ``resolution`` R); voxel ``[a, b, c]`` has its centre at
 ``origin + (index + 0.5) * size / R``; volumes are ``(R, R, R)`` C-order ``[x, y, z]``.
-Arrays must be C-contiguous with the stated dtype; anything else raises ``ShapeError``.
+Arrays must be C-contiguous and aligned, with the stated dtype in native byte order;
+anything else raises ``ShapeError``. A bool array may hold any byte (a view of other
+data): nonzero reads as True, as in NumPy. Numbers are ints, floats or NumPy scalars: a
+bool (Python's or NumPy's) is never taken for a number, and an object that is not a
+number raises ``InvalidValueError`` naming the argument (not ``TypeError``); so does an
+object of the wrong class where a ``PinholeCamera``, ``OccupancyGrid`` or ``MeshScene``
+is expected. Sequences (3-vectors, camera and mask lists, trajectories) are read item by
+item up to the length the call needs: an endless iterable is refused, not drained.
 """
 
 from collections.abc import Mapping, Sequence
@@ -207,7 +214,8 @@ def score_views(
     lam: float = 0.9,
     region: _Mask3 | None = None,
 ) -> _F32:
-    """Exact eq. 14 score of each candidate trajectory (``(M_k, 4, 4)`` poses), float32 (K,).
+    """Exact eq. 14 score of each candidate trajectory (``(M_k, 4, 4)`` poses, 1 to 4096
+    each; at most 65536 trajectories), float32 (K,).
 
     ``1 - #high-confidence after / #high-confidence before`` (float32 arithmetic),
     rendering the hypothetical masks from ``scene``. All zeros when the grid has no
@@ -234,8 +242,12 @@ def antipodal_grasps(
     grid origin); ``candidates`` (N, 3) voxel indices of the TCPs; ``rotations``
     (K, 3, 3) TCP-to-world with their ``tilts`` (K,). ``params``: the voxel size, the
     grid's ``origin_z``, the gripper geometry and the thresholds of ``AntipodalPlanner``
-    by name (the core puts the gripper on the lattice). Returns per candidate the best
-    quality (0: none), the index of its orientation and its width (m).
+    by name (the core puts the gripper on the lattice), in any mapping; the two
+    ``*_half`` entries are pairs. Every gripper length must be finite and at most 65536
+    voxels; ``min_patch`` an int in [0, 2**32 - 1]. ``rotations`` must be rotations
+    (orthonormal, det +1, within 1e-4: else ``NotRigidError``) and ``tilts`` finite.
+    Returns per candidate the best quality in [0, 1] (0: none), the index of its
+    orientation and its width (m).
     """
 
 def keep_silhouettes(
@@ -251,7 +263,8 @@ def keep_silhouettes(
     the silhouettes show to be real (``heapgrasp.roofs.keep_silhouettes``' rule).
 
     One view per entry of ``cameras``, ``poses`` (N, 4, 4) cam2world and ``masks``
-    ((height, width) bool each). Returns a bool (R, R, R) volume. Raises ``ShapeError``,
+    ((height, width) bool each; ``cameras`` and ``masks`` any iterables of N entries).
+    Returns a bool (R, R, R) volume. Raises ``ShapeError``,
     ``InvalidValueError``, ``NonFiniteError`` or ``NotRigidError`` naming the bad
     argument.
     """
