@@ -202,3 +202,13 @@ def test_objects_that_cannot_fit_are_refused_and_those_placed_are_recorded(
     assert record["objects_requested"] == 12 and record["objects_total"] < 12
     assert summary["objects_requested"] == 12
     assert f"placed {record['objects_total']} of 12 objects" in capsys.readouterr().err
+
+
+def test_a_configuration_error_exits_2_in_every_command(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "data"
+    assert main(["critic", "data", "--set", "nonsense=1", "--out", str(out)]) == 2
+    assert "unknown parameter 'nonsense'" in capsys.readouterr().err
+    assert main(["bench", "sim", "--set", "nonsense=1", "--out", str(tmp_path / "b")]) == 2
+    capsys.readouterr()

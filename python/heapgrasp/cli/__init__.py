@@ -69,6 +69,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         The exit status: 0 on success, 1 when a command fails (for benchmarks: a result
         check failed), 2 on invalid arguments; ``--help`` and ``--version`` return 0.
     """
+    from heapgrasp.loop.config import ConfigError
+
     args_list = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     try:
@@ -81,6 +83,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("heapgrasp: interrupted", file=sys.stderr)
         return 130
+    except ConfigError as exc:  # a configuration error exits 2 in every command
+        print(f"heapgrasp: error: {exc}", file=sys.stderr)
+        return 2
     except (OSError, ValueError, RuntimeError) as exc:
         print(f"heapgrasp: error: {exc}", file=sys.stderr)
         return 1
