@@ -377,8 +377,10 @@ def test_data_phases_take_other_run_settings(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="L"):
         CriticDataConfig(overrides=(("L", "three"),))
     out = tmp_path / "d"
-    assert main(["critic", "data", "--set", "nope=1", "--out", str(out)]) == 1
-    assert main(["critic", "data", "--set", "L", "--out", str(out)]) == 1
+    assert (
+        main(["critic", "data", "--set", "nope=1", "--out", str(out)]) == 2
+    )  # a configuration error
+    assert main(["critic", "data", "--set", "L", "--out", str(out)]) == 2
     assert not out.exists()
 
 
