@@ -9,6 +9,7 @@ parsed :class:`argparse.Namespace` and returning the exit status::
     heapgrasp bench carve|world|sim|grasp    benchmarks
     heapgrasp sim capture                    frames of a seeded scene
     heapgrasp critic data|train|eval         the learned grasp critic
+    heapgrasp data views                     the view network's dataset (Algorithm 1)
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     """
     from heapgrasp import __version__, bench
     from heapgrasp.cli import critic as critic_cli
+    from heapgrasp.cli import data as data_cli
     from heapgrasp.cli import run as run_cli
     from heapgrasp.cli import show as show_cli
     from heapgrasp.cli import sim as sim_cli
@@ -52,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_parser(commands)
     sim_cli.add_parser(commands)
     critic_cli.add_parser(commands)
+    data_cli.add_parser(commands)
     return parser
 
 
