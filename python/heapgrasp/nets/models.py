@@ -1,10 +1,11 @@
 """The two networks of HEAPGrasp §IV-B: the grasp network (eq. 11) and the view network
 (eq. 13).
 
-Both read a ``(B, 1, R, R, R)`` grid indexed ``[x, y, z]`` (the package convention, z up)
-and share the architecture of their 3-D encoder, :class:`Encoder3d` (VGN's, Breyer et al.
-2020): three stride-2 3-D convolutions, ``R → R/2 → R/4 → R/8``, so ``R`` must be a
-multiple of 8 (40 in the paper, Table I).
+Both read a ``(B, 1, R, R, R)`` grid indexed ``[x, y, z]`` (the package convention, z up;
+the view network optionally a second channel, ``in_channels = 2``) and share the
+architecture of their 3-D encoder, :class:`Encoder3d` (VGN's, Breyer et al. 2020): three
+stride-2 3-D convolutions, ``R → R/2 → R/4 → R/8``, so ``R`` must be a multiple of 8 (40
+in the paper, Table I).
 
 * :class:`GraspNet` — the encoder-decoder 3-D CNN of the grasp planning module: a VGN
   decoder (three ``conv3d → ReLU → trilinear ×2`` blocks) back to ``R³`` and three
@@ -89,10 +90,10 @@ def _check_resolution(resolution: int, levels: int) -> int:
     return r
 
 
-def _check_grid(x: Tensor, resolution: int, who: str) -> None:
-    r = resolution
-    if x.dim() != 5 or x.shape[1] != 1 or tuple(x.shape[2:]) != (r, r, r):
-        raise ValueError(f"{who} expects a (B, 1, {r}, {r}, {r}) grid, got {tuple(x.shape)}")
+def _check_grid(x: Tensor, resolution: int, who: str, channels: int = 1) -> None:
+    r, c = resolution, channels
+    if x.dim() != 5 or x.shape[1] != c or tuple(x.shape[2:]) != (r, r, r):
+        raise ValueError(f"{who} expects a (B, {c}, {r}, {r}, {r}) grid, got {tuple(x.shape)}")
 
 
 class Encoder3d(nn.Module):
@@ -232,7 +233,7 @@ def _unit_quaternions(raw: Tensor, eps: float = 1e-12) -> Tensor:
 class ViewNet(nn.Module):
     """View planning network (HEAPGrasp eq. 13): ``Ŝ_{0-1}`` grid → ``U × V`` view scores.
 
-    ``forward(x)`` with ``x`` of shape ``(B, 1, R, R, R)`` returns ``(B, U, V)`` scores in
+    ``forward(x)`` with ``x`` of shape ``(B, in_channels, R, R, R)`` returns ``(B, U, V)`` scores in
     [0, 1]; ``[b, u, v]`` scores the candidate at azimuth ``φ = 2π u / U`` and polar angle
     ``θ = θ_max v / V`` (eq. 12, 0-based indices), the network's estimate of eq. 14.
 
@@ -251,6 +252,10 @@ class ViewNet(nn.Module):
         Channels of the ``conv2d 3×3 → ReLU → upsample`` blocks.
     head_kernel : int
         Kernel of the final ``conv2d → sigmoid``.
+    in_channels : int
+        Channels of the input grid: 1 is the paper's ``Ŝ_{0-1}`` alone; 2 adds the x–y
+        column mask eq. 14 is counted on (broadcast along z, 0/1), for scores restricted to
+        a region (``OracleViewScorer(target_radius > 0)``).
     """
 
     def __init__(
@@ -263,9 +268,11 @@ class ViewNet(nn.Module):
         compress_channels: int = 64,
         up_channels: Sequence[int] = _VIEW_UP_CHANNELS,
         head_kernel: int = 3,
+        in_channels: int = 1,
     ) -> None:
         super().__init__()
-        self.encoder = Encoder3d(encoder_channels, encoder_kernels)
+        (channels,) = _ints("in_channels", (in_channels,), 1)
+        self.encoder = Encoder3d(encoder_channels, encoder_kernels, in_channels=channels)
         self.resolution = _check_resolution(resolution, self.encoder.levels)
         u, v = _ints("view_shape (U, V)", view_shape, 2)
         self.view_shape = (u, v)
@@ -307,7 +314,13 @@ class ViewNet(nn.Module):
             "compress_channels": self.compress_channels,
             "up_channels": list(self.up_channels),
             "head_kernel": self.head_kernel,
+            "in_channels": self.in_channels,
         }
+
+    @property
+    def in_channels(self) -> int:
+        """Channels of the input grid (1: ``Ŝ_{0-1}``; 2: plus the region mask)."""
+        return self.encoder.in_channels
 
     def compress_z(self, features: Tensor) -> Tensor:
         """z-compression: ``(B, C, X, Y, Z) → (B, C·Z, X, Y)`` (height folded into
@@ -317,8 +330,8 @@ class ViewNet(nn.Module):
         return F.relu(self.compress(folded))
 
     def forward(self, x: Tensor) -> Tensor:
-        """``(B, 1, R, R, R) → (B, U, V)`` view scores in [0, 1] (eq. 13)."""
-        _check_grid(x, self.resolution, "ViewNet")
+        """``(B, in_channels, R, R, R) → (B, U, V)`` view scores in [0, 1] (eq. 13)."""
+        _check_grid(x, self.resolution, "ViewNet", self.in_channels)
         h = self.compress_z(self.encoder(x))
         for conv, size in zip(self.ups, self.sizes, strict=True):
             h = F.relu(conv(h))
