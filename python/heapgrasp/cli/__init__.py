@@ -10,6 +10,7 @@ parsed :class:`argparse.Namespace` and returning the exit status::
     heapgrasp sim capture                    frames of a seeded scene
     heapgrasp critic data|train|eval         the learned grasp critic
     heapgrasp data views                     the view network's dataset (Algorithm 1)
+    heapgrasp train views DATA_DIR ...       the view network trained on that dataset
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     from heapgrasp.cli import run as run_cli
     from heapgrasp.cli import show as show_cli
     from heapgrasp.cli import sim as sim_cli
+    from heapgrasp.cli import train as train_cli
 
     parser = argparse.ArgumentParser(
         prog="heapgrasp",
@@ -55,6 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim_cli.add_parser(commands)
     critic_cli.add_parser(commands)
     data_cli.add_parser(commands)
+    train_cli.add_parser(commands)
     return parser
 
 

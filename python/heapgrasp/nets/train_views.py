@@ -1,0 +1,650 @@
+"""Training the view network (HEAPGrasp §IV-B, eq. 13) on the view dataset of
+``heapgrasp data views`` (Algorithm 1, exact eq. 14 labels). Needs PyTorch, safetensors
+and matplotlib: ``pip install 'heapgrasp[train]'``.
+
+* :func:`train` — Adam, a cosine learning rate per step, BCE (default) or MSE on the
+  ``U × V`` map, each batch turned by one of the 8 exact symmetries of
+  :mod:`heapgrasp.nets.view_data` (quarter turns about z shift ``u`` by ``U/4``, the
+  mirror ``y → −y`` sends ``u`` to ``−u``); a checkpoint every epoch (safetensors:
+  weights, optimizer state, RNG; JSON in its header: settings, history), ``resume=True``
+  continues it exactly; ``OUT/metrics.csv`` and ``OUT/metrics.png`` per epoch; the
+  weights of the best epoch by validation median Spearman ρ kept in
+  ``OUT/best.safetensors``.
+* :func:`predict`, :func:`ranking_metrics`, :func:`evaluate` — loss, per-sample Spearman ρ
+  and top-1 regret of a network on a dataset. Eq. 18 agreement (which needs the
+  planning layer) is :func:`heapgrasp.planning.view_eval.evaluate`.
+* :func:`save_view_network` / :func:`load_view_network` — the trained network as
+  ``NAME.safetensors`` (the state dict; the architecture in its header) plus a model
+  card ``NAME.json``.
+
+Labels can be negative (eq. 14 of a view that segments voxels never seen before), the
+network's sigmoid cannot: the loss compares it with the labels clipped to [0, 1]; every
+metric uses the exact labels.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import torch
+import torch.nn.functional as F
+from torch import Tensor
+
+from heapgrasp.nets.models import ViewNet
+from heapgrasp.nets.view_data import (
+    SYMMETRIES,
+    ViewDataError,
+    ViewDataset,
+    batch_inputs,
+    check_compatible,
+    transform_grid,
+    transform_scores,
+)
+
+__all__ = [
+    "CHECKPOINT",
+    "LOSSES",
+    "NETWORK_FORMAT",
+    "Evaluator",
+    "TrainConfig",
+    "TrainResult",
+    "TrainSetupError",
+    "distinct_views",
+    "evaluate",
+    "load_view_network",
+    "loss_fn",
+    "predict",
+    "ranking_metrics",
+    "save_view_network",
+    "spearman",
+    "top1_regret",
+    "train",
+]
+
+F32 = npt.NDArray[np.float32]
+F64 = npt.NDArray[np.float64]
+
+#: ``"format"`` in the header of a trained view network's safetensors file.
+NETWORK_FORMAT = "heapgrasp-view-network"
+_CHECKPOINT_FORMAT = "heapgrasp-view-train-checkpoint"
+#: Checkpoint file name inside the output directory.
+CHECKPOINT = "checkpoint.safetensors"
+_BEST = "best.safetensors"
+#: Losses :func:`train` offers.
+LOSSES = ("bce", "mse")
+
+
+class TrainSetupError(ValueError):
+    """Training cannot start as asked (wrong split, clashing settings on resume, ...)."""
+
+
+# --------------------------------------------------------------------------- metrics
+
+
+def loss_fn(pred: Tensor, labels: Tensor, loss: str) -> Tensor:
+    """Mean BCE or MSE of the predicted map against the labels clipped to [0, 1]."""
+    y = labels.clamp(0.0, 1.0)
+    if loss == "bce":
+        return F.binary_cross_entropy(pred, y)
+    if loss == "mse":
+        return F.mse_loss(pred, y)
+    raise ValueError(f"loss must be one of {', '.join(LOSSES)}, got {loss!r}")
+
+
+def distinct_views(maps: npt.ArrayLike) -> F64:
+    """``(N, U, V)`` maps → ``(N, 1 + U (V−1))``: the ``v = 0`` column (θ = 0, one pose
+    for every ``u``) becomes one entry, its mean, so that the pole counts once."""
+    m = np.asarray(maps, dtype=np.float64)
+    if m.ndim != 3:
+        raise ValueError(f"maps must be (N, U, V), got shape {m.shape}")
+    return np.concatenate(
+        [m[:, :, 0].mean(axis=1, keepdims=True), m[:, :, 1:].reshape(len(m), -1)], 1
+    )
+
+
+def _ranks(x: F64) -> F64:
+    from scipy.stats import rankdata
+
+    return np.asarray(rankdata(x, axis=1), dtype=np.float64)
+
+
+def spearman(pred: npt.ArrayLike, labels: npt.ArrayLike) -> F64:
+    """Per-sample Spearman ρ of ``(N, M)`` predictions and labels (ties: average ranks).
+
+    NaN where a sample's labels are constant (no ranking to match); 0 where only the
+    predictions are (they rank nothing).
+    """
+    p, y = np.asarray(pred, dtype=np.float64), np.asarray(labels, dtype=np.float64)
+    if p.shape != y.shape or p.ndim != 2:
+        raise ValueError(f"pred {p.shape} and labels {y.shape} must be the same (N, M)")
+    rp, ry = _ranks(p), _ranks(y)
+    rp -= rp.mean(axis=1, keepdims=True)
+    ry -= ry.mean(axis=1, keepdims=True)
+    sp, sy = (rp * rp).sum(axis=1), (ry * ry).sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho = (rp * ry).sum(axis=1) / np.sqrt(sp * sy)
+    rho = np.where(sp > 0, rho, 0.0)
+    return np.asarray(np.where(sy > 0, rho, np.nan), dtype=np.float64)
+
+
+def top1_regret(pred: npt.ArrayLike, labels: npt.ArrayLike) -> F64:
+    """Per sample ``max(labels) − labels[argmax(pred)]`` (≥ 0, 0 when the network's best
+    view is the oracle's): the eq. 14 score lost by trusting the network. ``(N, ...)``."""
+    p = np.asarray(pred, dtype=np.float64)
+    y = np.asarray(labels, dtype=np.float64)
+    if p.shape != y.shape or p.ndim < 2:
+        raise ValueError(f"pred {p.shape} and labels {y.shape} must be the same (N, ...)")
+    p, y = p.reshape(len(p), -1), y.reshape(len(y), -1)
+    picked = y[np.arange(len(y)), p.argmax(axis=1)]
+    return np.asarray(y.max(axis=1) - picked, dtype=np.float64)
+
+
+def ranking_metrics(pred: npt.ArrayLike, labels: npt.ArrayLike) -> dict[str, float]:
+    """Spearman ρ (over :func:`distinct_views`; median and mean over the samples with
+    non-constant labels) and top-1 regret (mean, median) of ``(N, U, V)`` maps."""
+    p, y = np.asarray(pred, dtype=np.float64), np.asarray(labels, dtype=np.float64)
+    rho = spearman(distinct_views(p), distinct_views(y))
+    defined = rho[np.isfinite(rho)]
+    regret = top1_regret(p, y)
+    return {
+        "samples": float(len(y)),
+        "spearman_median": float(np.median(defined)) if defined.size else math.nan,
+        "spearman_mean": float(defined.mean()) if defined.size else math.nan,
+        "constant_labels": float(len(rho) - defined.size),
+        "regret_mean": float(regret.mean()),
+        "regret_median": float(np.median(regret)),
+        "top1_exact": float((regret <= 0.0).mean()),
+    }
+
+
+def predict(
+    net: ViewNet,
+    data: ViewDataset,
+    *,
+    batch_size: int = 64,
+    device: str | torch.device | None = None,
+) -> F32:
+    """The network's ``(N, U, V)`` scores for every sample (eval mode, no gradients;
+    the network's mode is restored)."""
+    dev = torch.device(device) if device is not None else next(net.parameters()).device
+    was_training = net.training
+    net.eval()
+    out = np.empty((len(data), *net.view_shape), dtype=np.float32)
+    try:
+        with torch.inference_mode():
+            for start in range(0, len(data), batch_size):
+                idx = np.arange(start, min(start + batch_size, len(data)))
+                x = torch.from_numpy(batch_inputs(data, idx, net.in_channels)).to(dev)
+                out[idx] = net(x).float().cpu().numpy()
+    finally:
+        net.train(was_training)
+    return out
+
+
+def evaluate(
+    net: ViewNet,
+    data: ViewDataset,
+    *,
+    loss: str = "bce",
+    batch_size: int = 64,
+    device: str | torch.device | None = None,
+) -> dict[str, float]:
+    """``loss`` (the training loss) and :func:`ranking_metrics` of ``net`` on ``data``."""
+    pred = predict(net, data, batch_size=batch_size, device=device)
+    value = float(loss_fn(torch.from_numpy(pred), torch.from_numpy(data.scores), loss))
+    return {"loss": value, **ranking_metrics(pred, data.scores)}
+
+
+# --------------------------------------------------------------------------- training
+
+#: ``(net, dataset) → {metric: value}``, run on the validation data after every epoch.
+Evaluator = Callable[[ViewNet, ViewDataset], dict[str, float]]
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainConfig:
+    """Settings of :func:`train` (all but ``device`` and ``workers`` must match on resume)."""
+
+    epochs: int = 30
+    """Passes over the training data."""
+    batch_size: int = 32
+    """Samples per step."""
+    lr: float = 1e-3
+    """Adam's learning rate at step 0; cosine-annealed to 0 at the last step."""
+    loss: str = "bce"
+    """``bce`` or ``mse`` on the ``U × V`` map (labels clipped to [0, 1])."""
+    seed: int = 0
+    """Initial weights (``torch.manual_seed``) and each epoch's order and symmetries."""
+    in_channels: int = 1
+    """1: ``Ŝ_{0-1}`` (the paper); 2: plus the region mask."""
+    augment: bool = True
+    """Draw one of the 8 :data:`SYMMETRIES` per batch."""
+
+    def __post_init__(self) -> None:
+        for name in ("epochs", "batch_size"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if not (isinstance(self.lr, float | int) and math.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"lr must be > 0, got {self.lr!r}")
+        if self.loss not in LOSSES:
+            raise ValueError(f"loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
+        if self.in_channels not in (1, 2):
+            raise ValueError(f"in_channels must be 1 or 2, got {self.in_channels!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain types."""
+        return dataclasses.asdict(self)
+
+
+@dataclass
+class TrainResult:
+    """What :func:`train` returns."""
+
+    net: ViewNet
+    """The network with the best epoch's weights (by validation median Spearman ρ)."""
+    best_epoch: int
+    """1-based epoch of those weights."""
+    history: list[dict[str, float]]
+    """One row per epoch (as ``metrics.csv``)."""
+    seconds: float
+    """Training and validation time over every epoch, resumed runs included."""
+
+
+def _lr_at(config: TrainConfig, step: int, total: int) -> float:
+    return config.lr * 0.5 * (1.0 + math.cos(math.pi * step / max(total, 1)))
+
+
+def _epoch_plan(
+    config: TrainConfig, epoch: int, n: int
+) -> Iterator[tuple[npt.NDArray[np.int64], tuple[int, bool]]]:
+    """Each epoch's batches and symmetries, from a generator seeded by (seed, epoch) so a
+    resumed run draws the same ones."""
+    rng = np.random.default_rng([config.seed, epoch])
+    order = rng.permutation(n)
+    batches = [order[i : i + config.batch_size] for i in range(0, n, config.batch_size)]
+    drawn = rng.integers(0, len(SYMMETRIES), len(batches))
+    for idx, g in zip(batches, drawn, strict=True):
+        yield idx, (SYMMETRIES[int(g)] if config.augment else (0, False))
+
+
+def _identity(config: TrainConfig, train: ViewDataset, val: ViewDataset) -> dict[str, Any]:
+    """What must match for a checkpoint to be resumed."""
+    return {
+        "config": config.as_dict(),
+        "train": [s.as_dict() for s in train.sources],
+        "val": [s.as_dict() for s in val.sources],
+        "geometry": dataclasses.asdict(train.geometry),
+    }
+
+
+def _save_atomic(tensors: dict[str, Tensor], path: Path, metadata: dict[str, str]) -> None:
+    from safetensors.torch import save_file
+
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        plain = {k: v.detach().cpu().contiguous() for k, v in tensors.items()}
+        save_file(plain, str(tmp), metadata=metadata)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _read_safetensors(path: Path, what: str) -> tuple[dict[str, Tensor], dict[str, str]]:
+    from safetensors import SafetensorError, safe_open
+
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            meta = dict(f.metadata() or {})
+            tensors = {k: f.get_tensor(k) for k in f.keys()}
+    except FileNotFoundError:
+        raise
+    except (OSError, SafetensorError, ValueError) as exc:
+        raise TrainSetupError(f"{path}: not a readable {what} ({exc})") from None
+    return tensors, meta
+
+
+def _save_checkpoint(
+    path: Path,
+    net: ViewNet,
+    opt: torch.optim.Optimizer,
+    state: dict[str, Any],
+) -> None:
+    tensors = {f"model.{k}": v for k, v in net.state_dict().items()}
+    sd = opt.state_dict()
+    for pid, entry in sd["state"].items():
+        for key, value in entry.items():
+            tensors[f"optimizer.{pid}.{key}"] = torch.as_tensor(value)
+    tensors["rng.torch"] = torch.get_rng_state()
+    full = {**state, "param_groups": sd["param_groups"], "hparams": net.hparams()}
+    _save_atomic(tensors, path, {"format": _CHECKPOINT_FORMAT, "state": json.dumps(full)})
+
+
+def _load_checkpoint(path: Path, net: ViewNet, opt: torch.optim.Optimizer) -> dict[str, Any]:
+    tensors, meta = _read_safetensors(path, "training checkpoint")
+    if meta.get("format") != _CHECKPOINT_FORMAT:
+        raise TrainSetupError(f"{path}: not a view network training checkpoint")
+    try:
+        state = json.loads(meta["state"])
+    except (KeyError, json.JSONDecodeError) as exc:
+        raise TrainSetupError(f"{path}: checkpoint state unreadable ({exc})") from None
+    model = {k[len("model.") :]: v for k, v in tensors.items() if k.startswith("model.")}
+    try:
+        net.load_state_dict(model, strict=True)
+        opt_state: dict[int, dict[str, Tensor]] = {}
+        for key, value in tensors.items():
+            if key.startswith("optimizer."):
+                _, pid, name = key.split(".", 2)
+                opt_state.setdefault(int(pid), {})[name] = value
+        opt.load_state_dict({"state": opt_state, "param_groups": state["param_groups"]})
+    except (RuntimeError, KeyError, ValueError) as exc:
+        raise TrainSetupError(f"{path}: checkpoint does not fit this network ({exc})") from None
+    torch.set_rng_state(tensors["rng.torch"])
+    return dict(state)
+
+
+def _resume_mismatch(saved: Mapping[str, Any], wanted: Mapping[str, Any]) -> list[str]:
+    diff = []
+    for key in ("config", "geometry"):
+        a, b = saved.get(key, {}), wanted[key]
+        diff += [f"{key}.{k}: {a.get(k)!r} there, {b[k]!r} now" for k in b if a.get(k) != b[k]]
+    for key in ("train", "val"):
+        if saved.get(key) != wanted[key]:
+            diff.append(f"{key} data: {saved.get(key)!r} there, {wanted[key]!r} now")
+    return diff
+
+
+def _write_csv(path: Path, history: list[dict[str, float]]) -> None:
+    if not history:
+        return
+    fields = list(history[0])
+    tmp = path.with_name(f".{path.name}.tmp")
+    with tmp.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
+        w.writeheader()
+        for row in history:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+    os.replace(tmp, path)
+
+
+def _plot(path: Path, history: list[dict[str, float]]) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    epochs = [row["epoch"] for row in history]
+    panels = [
+        ("loss", [("train_loss", "train"), ("val_loss", "validation")]),
+        (
+            "Spearman ρ (validation)",
+            [("val_spearman_median", "median"), ("val_spearman_mean", "mean")],
+        ),
+        ("top-1 regret (validation)", [("val_regret_mean", "mean")]),
+    ]
+    matches = [k for k in history[0] if k.startswith("val_eq18_match")]
+    if matches:
+        panels.append(
+            ("eq. 18 = oracle (validation)", [(k, k[len("val_eq18_match_") :]) for k in matches])
+        )
+    fig = Figure(figsize=(4.0 * len(panels), 3.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    for i, (title, series) in enumerate(panels):
+        ax = fig.add_subplot(1, len(panels), i + 1)
+        for key, label in series:
+            ax.plot(epochs, [row.get(key, math.nan) for row in history], marker=".", label=label)
+        ax.set_title(title)
+        ax.set_xlabel("epoch")
+        ax.grid(alpha=0.3)
+        ax.legend()
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=100)
+    os.replace(tmp, path)
+
+
+def train(
+    config: TrainConfig,
+    train_data: ViewDataset,
+    val_data: ViewDataset,
+    out: str | os.PathLike[str],
+    *,
+    device: str = "cpu",
+    resume: bool = False,
+    evaluator: Evaluator | None = None,
+    progress: bool = True,
+    log: Callable[[str], None] | None = print,
+) -> TrainResult:
+    """Trains a :class:`ViewNet` on ``train_data``, validating on ``val_data`` after
+    every epoch, writing to ``out`` (module docstring).
+
+    Parameters
+    ----------
+    config : TrainConfig
+        The settings.
+    train_data, val_data : ViewDataset
+        Splits ``train`` and ``val`` of the same geometry (TrainSetupError otherwise: a
+        ``test`` dataset is never trained on).
+    out : path-like
+        Output directory: ``checkpoint.safetensors``, ``best.safetensors``,
+        ``metrics.csv``, ``metrics.png``.
+    device : str
+        A torch device name (``heapgrasp.nets.resolve_device`` checks one first).
+    resume : bool
+        Continue from ``out``'s checkpoint (TrainSetupError when there is none, or when it
+        was made with other settings or data); without it an existing checkpoint is
+        refused.
+    evaluator : callable, optional
+        ``(net, dataset) → {name: value}`` run on ``val_data`` every epoch; default
+        :func:`evaluate` with the training loss. Needs ``loss`` and ``spearman_median``.
+    progress : bool
+        A tqdm progress bar per epoch (on a terminal).
+    log : callable or None
+        Receives one line per epoch.
+    """
+    if train_data.split != "train":
+        raise TrainSetupError(
+            f"{', '.join(s.path for s in train_data.sources)}: a {train_data.split!r} "
+            "dataset cannot be trained on; training takes 'train' datasets (val: "
+            "held-out train objects for validation; test: the benchmark's objects)"
+        )
+    if val_data.split != "val":
+        raise TrainSetupError(
+            f"{', '.join(s.path for s in val_data.sources)}: validation needs a 'val' "
+            f"dataset, this one is {val_data.split!r}"
+        )
+    try:
+        check_compatible(train_data, val_data)
+    except ViewDataError as exc:
+        raise TrainSetupError(str(exc)) from None
+    shared = train_data.objects & val_data.objects
+    if shared:
+        raise TrainSetupError(
+            f"training and validation data share objects ({', '.join(sorted(shared)[:5])}): "
+            "validation must be on held-out objects"
+        )
+    if train_data.geometry.U % 4 and config.augment:
+        raise TrainSetupError(f"U = {train_data.geometry.U}: symmetries need U divisible by 4")
+
+    out_dir = Path(out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    ckpt = out_dir / CHECKPOINT
+    geo = train_data.geometry
+    torch.manual_seed(config.seed)
+    net = ViewNet(geo.resolution, geo.view_shape, in_channels=config.in_channels)
+    net.to(device)
+    opt = torch.optim.Adam(net.parameters(), lr=config.lr)
+    identity = _identity(config, train_data, val_data)
+    state: dict[str, Any] = {
+        **identity,
+        "epoch": 0,
+        "history": [],
+        "best_epoch": 0,
+        "best_value": None,
+        "seconds": 0.0,
+    }
+    if ckpt.exists() and not resume:
+        raise TrainSetupError(
+            f"{out_dir} holds a training run ({CHECKPOINT}); pass --resume to continue it "
+            "or choose another output directory"
+        )
+    if resume:
+        if not ckpt.exists():
+            raise TrainSetupError(f"--resume: no {CHECKPOINT} in {out_dir} to resume")
+        saved = _load_checkpoint(ckpt, net, opt)
+        diff = _resume_mismatch(saved, identity)
+        if diff:
+            raise TrainSetupError(
+                f"{ckpt} was made with other settings or data; resume with the same ones "
+                f"or train into another directory ({'; '.join(diff)})"
+            )
+        state.update(
+            {k: saved[k] for k in ("epoch", "history", "best_epoch", "best_value", "seconds")}
+        )
+        if log:
+            log(f"resuming {out_dir} after epoch {state['epoch']} of {config.epochs}")
+
+    def default_eval(n: ViewNet, d: ViewDataset) -> dict[str, float]:
+        return evaluate(n, d, loss=config.loss, device=device)
+
+    run_eval = evaluator or default_eval
+    n = len(train_data)
+    steps = -(-n // config.batch_size)
+    total = steps * config.epochs
+    from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
+
+    for epoch in range(int(state["epoch"]), config.epochs):
+        started = time.perf_counter()
+        net.train()
+        losses: list[float] = []
+        bar = tqdm(
+            total=steps,
+            desc=f"epoch {epoch + 1}/{config.epochs}",
+            unit="batch",
+            disable=None if progress else True,
+            leave=False,
+        )
+        with bar:
+            for b, (idx, (k, mirror)) in enumerate(_epoch_plan(config, epoch, n)):
+                lr = _lr_at(config, epoch * steps + b, total)
+                for group in opt.param_groups:
+                    group["lr"] = lr
+                x = torch.from_numpy(batch_inputs(train_data, idx, config.in_channels))
+                y = torch.from_numpy(train_data.scores[idx])
+                x = transform_grid(x, k, mirror).to(device)
+                y = transform_scores(y, k, mirror).to(device)
+                loss = loss_fn(net(x), y, config.loss)
+                opt.zero_grad(set_to_none=True)
+                loss.backward()  # type: ignore[no-untyped-call]
+                opt.step()
+                losses.append(float(loss.detach()))
+                bar.update()
+                bar.set_postfix(loss=f"{np.mean(losses):.4f}")
+        metrics = run_eval(net, val_data)
+        seconds = time.perf_counter() - started
+        row: dict[str, float] = {
+            "epoch": float(epoch + 1),
+            "lr_end": float(opt.param_groups[0]["lr"]),
+            "train_loss": float(np.mean(losses)),
+            **{f"val_{k}": float(v) for k, v in metrics.items() if k != "samples"},
+            "seconds": round(seconds, 3),
+        }
+        state["history"].append(row)
+        state["seconds"] = float(state["seconds"]) + seconds
+        value = row["val_spearman_median"]
+        best = state["best_value"]
+        if math.isfinite(value) and (best is None or value > best):
+            state["best_value"], state["best_epoch"] = value, epoch + 1
+            _save_atomic(
+                dict(net.state_dict()),
+                out_dir / _BEST,
+                {
+                    "format": NETWORK_FORMAT,
+                    "hparams": json.dumps(net.hparams()),
+                    "epoch": str(epoch + 1),
+                },
+            )
+        state["epoch"] = epoch + 1
+        _save_checkpoint(ckpt, net, opt, state)
+        _write_csv(out_dir / "metrics.csv", state["history"])
+        _plot(out_dir / "metrics.png", state["history"])
+        if log:
+            log(
+                f"epoch {epoch + 1}/{config.epochs}: train loss {row['train_loss']:.4f}, "
+                f"val loss {row['val_loss']:.4f}, val Spearman median "
+                f"{row['val_spearman_median']:.3f}, val regret {row['val_regret_mean']:.4f} "
+                f"({seconds:.1f} s)"
+            )
+    best_path = out_dir / _BEST
+    if best_path.exists():
+        weights, _ = _read_safetensors(best_path, "weights file")
+        net.load_state_dict(weights, strict=True)
+    net.eval()
+    return TrainResult(
+        net=net,
+        best_epoch=int(state["best_epoch"]) or int(state["epoch"]),
+        history=list(state["history"]),
+        seconds=float(state["seconds"]),
+    )
+
+
+# --------------------------------------------------------------------------- weights files
+
+
+def save_view_network(
+    net: ViewNet, path: str | os.PathLike[str], card: Mapping[str, Any]
+) -> tuple[Path, Path]:
+    """Writes ``PATH`` (``.safetensors``: the state dict, with ``format`` and ``hparams``
+    in its header) and the model card ``PATH`` with suffix ``.json`` (``card`` plus the
+    architecture). Returns both paths."""
+    weights = Path(path)
+    if weights.suffix != ".safetensors":
+        raise ValueError(f"{weights}: the weights file must end in .safetensors")
+    weights.parent.mkdir(parents=True, exist_ok=True)
+    hparams = net.hparams()
+    _save_atomic(
+        dict(net.state_dict()),
+        weights,
+        {"format": NETWORK_FORMAT, "hparams": json.dumps(hparams)},
+    )
+    meta = weights.with_suffix(".json")
+    doc = {"format": NETWORK_FORMAT, "weights": weights.name, "architecture": hparams, **card}
+    tmp = meta.with_name(f".{meta.name}.tmp")
+    tmp.write_text(json.dumps(doc, indent=2, default=_json_default) + "\n")
+    os.replace(tmp, meta)
+    return weights, meta
+
+
+def _json_default(value: object) -> object:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def load_view_network(path: str | os.PathLike[str], device: str = "cpu") -> ViewNet:
+    """The :class:`ViewNet` of a ``.safetensors`` file written by :func:`train` or
+    :func:`save_view_network`, in eval mode (TrainSetupError when the file is not one)."""
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"view network weights not found: {p}")
+    tensors, meta = _read_safetensors(p, "view network weights file")
+    if meta.get("format") != NETWORK_FORMAT:
+        raise TrainSetupError(f"{p}: not a view network weights file (format)")
+    try:
+        net = ViewNet(**json.loads(meta["hparams"]))
+        net.load_state_dict(tensors, strict=True)
+    except (KeyError, TypeError, ValueError, RuntimeError, json.JSONDecodeError) as exc:
+        raise TrainSetupError(f"{p}: weights do not make a view network ({exc})") from None
+    return net.to(device).eval()
