@@ -326,6 +326,20 @@ def test_a_test_or_shared_object_dataset_is_never_trained_on(
         train(TrainConfig(epochs=1), tr, load_view_dataset(leaky), tmp_path / "o", log=None)
 
 
+def test_a_one_channel_network_leaves_region_samples_out(
+    tmp_path: Path, datasets: dict[str, Path]
+) -> None:
+    tr, va = load_view_dataset(datasets["train"]), load_view_dataset(datasets["val"])
+    assert tr.whole_grid.sum() == 7 and len(tr.for_network(2)) == 12  # shards 5, 5, 2
+    lines: list[str] = []
+    result = train(TrainConfig(epochs=1), tr, va, tmp_path / "o", progress=False, log=lines.append)
+    assert lines[0].startswith("in_channels = 1: 5 training and 2 validation samples")
+    assert len(result.history) == 1
+    only_regions = tr.subset(np.flatnonzero(~tr.whole_grid))
+    with pytest.raises(TrainSetupError, match="use --in-channels 2"):
+        train(TrainConfig(epochs=1), only_regions, va, tmp_path / "p", progress=False, log=None)
+
+
 def test_in_channels_two_reads_the_region_mask() -> None:
     net = ViewNet(8, (8, 4), in_channels=2)
     assert net.hparams()["in_channels"] == 2
@@ -369,8 +383,11 @@ def test_eq18_agreement(datasets: dict[str, Path]) -> None:
     b[0, 5, 0], b[0, 5, 1] = 0.0, 1.0
     assert selection_agreement(a, b, cands, cur, nan, 0.0).tolist() == [0.0]
     torch.manual_seed(0)
-    report = evaluate(ViewNet(8, (8, 4)), data)
+    report = evaluate(ViewNet(8, (8, 4), in_channels=2), data)
+    assert report["samples"] == 6.0
     assert report["with_target"] == 4.0  # every other sample of each shard (5 + 1)
+    # A 1-channel network is measured on the whole-grid samples only.
+    assert evaluate(ViewNet(8, (8, 4)), data)["samples"] == 4.0
     assert {"loss", "spearman_median", "regret_mean", "eq18_match_g0", "eq18_match_g0.35"} <= set(
         report
     )

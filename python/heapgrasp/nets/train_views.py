@@ -200,7 +200,10 @@ def evaluate(
     batch_size: int = 64,
     device: str | torch.device | None = None,
 ) -> dict[str, float]:
-    """``loss`` (the training loss) and :func:`ranking_metrics` of ``net`` on ``data``."""
+    """``loss`` (the training loss) and :func:`ranking_metrics` of ``net`` on the samples
+    of ``data`` it can score (:meth:`ViewDataset.for_network`: a 1-channel network only
+    on the whole-grid ones)."""
+    data = data.for_network(net.in_channels)
     pred = predict(net, data, batch_size=batch_size, device=device)
     value = float(loss_fn(torch.from_numpy(pred), torch.from_numpy(data.scores), loss))
     return {"loss": value, **ranking_metrics(pred, data.scores)}
@@ -475,6 +478,20 @@ def train(
         )
     if train_data.geometry.U % 4 and config.augment:
         raise TrainSetupError(f"U = {train_data.geometry.U}: symmetries need U divisible by 4")
+    given = (len(train_data), len(val_data))
+    train_data = train_data.for_network(config.in_channels)
+    val_data = val_data.for_network(config.in_channels)
+    if not len(train_data) or not len(val_data):
+        raise TrainSetupError(
+            "no whole-grid sample to train or validate a 1-channel network on (every "
+            "sample's eq. 14 is counted on a region): use --in-channels 2"
+        )
+    if log and (len(train_data), len(val_data)) != given:
+        log(
+            f"in_channels = 1: {given[0] - len(train_data)} training and "
+            f"{given[1] - len(val_data)} validation samples with eq. 14 counted on a region "
+            "left out (--in-channels 2 reads the region and uses them)"
+        )
 
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)

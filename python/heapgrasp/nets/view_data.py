@@ -181,6 +181,20 @@ class ViewDataset:
         """``(N,)``: the sample has a target grasp."""
         return np.asarray(np.isfinite(self.target).all(axis=(1, 2)))
 
+    @property
+    def whole_grid(self) -> npt.NDArray[np.bool_]:
+        """``(N,)``: eq. 14 was counted on the whole grid (the paper's), not a region."""
+        return np.asarray(self.region.all(axis=(1, 2)))
+
+    def for_network(self, in_channels: int) -> ViewDataset:
+        """The samples a network with ``in_channels`` inputs can learn: all of them with
+        the region channel (2); without it (1) only the whole-grid samples, since a
+        region's labels are another function of the same grid."""
+        if in_channels not in (1, 2):
+            raise ValueError(f"in_channels must be 1 or 2, got {in_channels!r}")
+        whole = self.whole_grid
+        return self if in_channels == 2 or whole.all() else self.subset(np.flatnonzero(whole))
+
     def subset(self, index: npt.ArrayLike) -> ViewDataset:
         """The samples at ``index`` (same sources)."""
         i = np.asarray(index)

@@ -96,10 +96,13 @@ def evaluate(
     ``spearman_median``, ``spearman_mean``, ``constant_labels``, ``regret_mean``,
     ``regret_median``, ``top1_exact`` (:func:`heapgrasp.nets.train_views.ranking_metrics`),
     ``eq18_match_g<γ2>`` for each of ``gammas`` and ``with_target`` (samples with a
-    target grasp, which only the γ2 > 0 comparisons use)."""
+    target grasp, which only the γ2 > 0 comparisons use), on the samples the network can
+    score (a 1-channel network: only those whose eq. 14 counts the whole grid)."""
     import torch
 
     from heapgrasp.nets.train_views import loss_fn, predict, ranking_metrics
+
+    data = data.for_network(net.in_channels)
 
     pred = predict(net, data, batch_size=batch_size, device=device)
     report = {
