@@ -25,6 +25,7 @@ import os
 import platform
 import shlex
 import sys
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -225,7 +226,7 @@ def add_parser(
         "views",
         help="train the view network (eq. 13) on view datasets",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description=(
+        description=textwrap.fill(
             "Trains the view network (HEAPGrasp eq. 13) on datasets of 'heapgrasp data "
             "views': input the occupancy grid (and with --in-channels 2 the region mask), "
             "target the exact eq. 14 scores of the U x V candidates. Each batch is turned "
@@ -236,7 +237,8 @@ def add_parser(
             "(OUT/best.safetensors). At the end: OUT/view_network.safetensors, its model "
             "card OUT/view_network.json and OUT/metrics.json (loss, Spearman rho, top-1 "
             "regret, eq. 18 agreement with the oracle at gamma2 = 0 and 0.35 on the "
-            "validation and test data)."
+            "validation and test data).",
+            width=80,
         ),
         epilog=(
             "example:\n"
