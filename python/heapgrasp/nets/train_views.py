@@ -602,6 +602,9 @@ def train(
                 f"{row['val_spearman_median']:.3f}, val regret {row['val_regret_mean']:.4f} "
                 f"({seconds:.1f} s)"
             )
+    if state["history"]:  # again: a run stopped between its checkpoint and these
+        _write_csv(out_dir / "metrics.csv", state["history"])
+        _plot(out_dir / "metrics.png", state["history"])
     best_path = out_dir / _BEST
     if best_path.exists():
         weights, _ = _read_safetensors(best_path, "weights file")
