@@ -138,72 +138,92 @@ def synthetic_critic(rng: np.random.Generator) -> tuple[GraspCritic, np.ndarray,
 
 def test_critic_learns_and_round_trips_through_its_file(tmp_path: Path) -> None:
     critic, x, y = synthetic_critic(np.random.default_rng(1))
+    assert critic.model == "linear"
     p = critic.probability(x)
     assert auc(p, y) > 0.95
-    path = tmp_path / "critic.npz"
-    critic.save(path, command="heapgrasp critic train d --out critic.npz", metadata={"a": 1})
+    path = tmp_path / "critic.onnx"
+    critic.save(path, command="heapgrasp critic train d --out critic.onnx", metadata={"a": 1})
     back = GraspCritic.load(path)
-    np.testing.assert_allclose(back.probability(x), p, atol=1e-5)
+    np.testing.assert_array_equal(back.probability(x), p)  # the same graph, the same runtime
     assert back.metadata["command"].startswith("heapgrasp critic train")
     assert back.metadata["a"] == 1
+    assert back.network.hparams["components"] == 4
 
 
 def test_critic_file_errors_name_the_file(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match="nothere"):
-        GraspCritic.load(tmp_path / "nothere.npz")
-    bad = tmp_path / "bad.npz"
+        GraspCritic.load(tmp_path / "nothere.onnx")
+    bad = tmp_path / "bad.npz"  # the former format: convert it first
     np.savez(bad, something=np.zeros(3))
-    with pytest.raises(ValueError, match=r"bad\.npz"):
+    with pytest.raises(ValueError, match=r"bad\.npz: a zip archive .*not an ONNX model"):
         GraspCritic.load(bad)
-    junk = tmp_path / "junk.npz"
-    junk.write_bytes(b"not a zip")
-    with pytest.raises(ValueError, match=r"junk\.npz"):
+    junk = tmp_path / "junk.onnx"
+    junk.write_bytes(b"not a model")
+    with pytest.raises(ValueError, match=r"junk\.onnx: not a valid ONNX model"):
         GraspCritic.load(junk)
 
 
 def test_critic_arrays_must_fit_together() -> None:
-    critic, _, _ = synthetic_critic(np.random.default_rng(2))
+    from heapgrasp.planning.critic_net import critic_onnx
+
+    n = 2 * N_CROP + N_SCALARS
+    mean, scale = np.zeros(n), np.ones(n)
+    hp = {"threshold": 0.5, "candidate_epsilon": 0.2}
     with pytest.raises(ValueError, match="fit together"):
-        GraspCritic(critic.mean, critic.scale, critic.components, critic.weights[:-2])
+        critic_onnx(
+            mean,
+            scale,
+            components=np.zeros((4, 2 * N_CROP)),
+            weights=np.zeros(15),
+            hparams=hp,
+            provenance={},
+        )
+    with pytest.raises(ValueError, match="scale > 0"):
+        critic_onnx(mean, scale * 0, components=None, weights=None, hparams=hp, provenance={})
+    critic, _, _ = synthetic_critic(np.random.default_rng(2))
     with pytest.raises(ValueError, match="threshold"):
-        GraspCritic(critic.mean, critic.scale, critic.components, critic.weights, 1.5)
+        GraspCritic(critic.network, 1.5)
+    with pytest.raises(ValueError, match="candidate_epsilon"):
+        GraspCritic(critic.network, 0.5, float("nan"))
 
 
-def test_cnn_critic_runs_in_numpy_as_in_torch_and_round_trips(tmp_path: Path) -> None:
+def test_cnn_critic_runs_in_onnxruntime_as_in_torch_and_round_trips(tmp_path: Path) -> None:
     torch = pytest.importorskip("torch")
-    from heapgrasp.planning.critic_net import ARRAYS, ConvCritic, _torch_module
+    from heapgrasp.planning.critic_net import ARRAYS, ConvCritic, _torch_module, fit_conv
 
     rng = np.random.default_rng(3)
     _, x, y = synthetic_critic(rng)
     critic = GraspCritic.fit(x, y, model="cnn", epochs=3, seed=1)
-    assert critic.model == "cnn" and critic.net is not None
-    again = GraspCritic.fit(x, y, model="cnn", epochs=3, seed=1)
-    assert again.net is not None
+    assert critic.model == "cnn" and critic.network.hparams["hidden"] == 64
+    mean, scale = x.mean(axis=0), x.std(axis=0)
+    scale[scale < 1e-6] = 1.0
+    z = (x - mean) / scale
+    weights = fit_conv(z, y, epochs=3, seed=1)
+    again = fit_conv(z, y, epochs=3, seed=1)
     for name in ARRAYS:  # deterministic for a seed
-        np.testing.assert_array_equal(getattr(critic.net, name), getattr(again.net, name))
-    # The numpy forward pass is PyTorch's (same layouts, pooling bins, flattening).
+        np.testing.assert_array_equal(getattr(weights, name), getattr(again, name))
+    # The graph is PyTorch's forward pass (same layouts, pooling bins, flattening).
     net = _torch_module(8, 16, 64).double().eval()
     layers = {"conv1": "conv1", "conv2": "conv2", "fc1": "fc1", "fc2": "fc2"}
     state = {
-        f"{layer}.{kind}": torch.from_numpy(getattr(critic.net, f"{name}_{kind[0]}"))
+        f"{layer}.{kind}": torch.from_numpy(getattr(weights, f"{name}_{kind[0]}"))
         for layer, name in layers.items()
         for kind in ("weight", "bias")
     }
     net.load_state_dict(state)
-    z = (x - critic.mean) / critic.scale
     with torch.no_grad():
-        expected = net(torch.from_numpy(z)).numpy()
-    np.testing.assert_allclose(critic.net.logits(z), expected, atol=1e-9)
-    # Its file (format version 2) gives the same probabilities back.
+        expected = 1.0 / (1.0 + np.exp(-np.clip(net(torch.from_numpy(z)).numpy(), -30, 30)))
     p = critic.probability(x)
+    np.testing.assert_allclose(p, expected, atol=1e-5)
     assert np.all((p > 0) & (p < 1))
-    path = tmp_path / "cnn.npz"
-    critic.save(path, command="heapgrasp critic train d --model cnn --out cnn.npz")
+    # Its file gives the same probabilities back.
+    path = tmp_path / "cnn.onnx"
+    critic.save(path, command="heapgrasp critic train d --model cnn --out cnn.onnx")
     back = GraspCritic.load(path)
-    assert back.model == "cnn" and back.metadata["model"] == "cnn"
-    np.testing.assert_allclose(back.probability(x), p, atol=1e-12)
+    assert back.model == "cnn" and back.metadata["command"].endswith("cnn.onnx")
+    np.testing.assert_array_equal(back.probability(x), p)
     with pytest.raises(ValueError, match="fc2_w"):
-        ConvCritic(*(getattr(critic.net, n) if n != "fc2_w" else np.zeros((2, 64)) for n in ARRAYS))
+        ConvCritic(*(getattr(weights, n) if n != "fc2_w" else np.zeros((2, 64)) for n in ARRAYS))
     with pytest.raises(ValueError, match="model"):
         GraspCritic.fit(x, y, model="forest")
 
@@ -355,8 +375,8 @@ def test_test_split_data_measures_but_never_trains(tmp_path: Path) -> None:
     assert load_dataset([data / "scene_000000.npz"])[0]["split"] == "test"
     with pytest.raises(ValueError, match=r"scene_000000\.npz holds test-split objects"):
         load_dataset([data / "scene_000000.npz"], training=True)
-    assert main(["critic", "train", str(data), "--out", str(tmp_path / "c.npz")]) == 1
-    assert not (tmp_path / "c.npz").exists()
+    assert main(["critic", "train", str(data), "--out", str(tmp_path / "c.onnx")]) == 1
+    assert not (tmp_path / "c.onnx").exists()
 
 
 def test_data_phases_take_other_run_settings(tmp_path: Path) -> None:
@@ -441,11 +461,11 @@ def test_data_of_one_scene_is_consistent_and_trains(
     # The command line: an empty folder is an error; five scene files make a critic.
     data = tmp_path / "data"
     data.mkdir()
-    assert main(["critic", "train", str(data), "--out", str(tmp_path / "c.npz")]) == 1
+    assert main(["critic", "train", str(data), "--out", str(tmp_path / "c.onnx")]) == 1
     for k in range(5):  # both classes, whatever happened in the simulator
         labelled = dict(s, outcome=np.full(n, "success" if k % 2 else "empty"))
         np.savez(data / f"scene_{k:06d}.npz", **labelled)
-    out = tmp_path / "c.npz"
+    out = tmp_path / "c.onnx"
     assert main(["critic", "train", str(data), "--out", str(out), "--components", "2"]) == 0
     critic = GraspCritic.load(out)
     assert critic.metadata["scenes"] == 5

@@ -1,5 +1,6 @@
 """The grasp network (eq. 11) and view network (eq. 13), their weights files, and the
-planners built on them (heapgrasp.nets, grasping.network, viewplan_network)."""
+planners built on them, which run the exported ONNX files (heapgrasp.nets,
+planning.grasp_network, planning.view_network)."""
 
 from __future__ import annotations
 
@@ -319,12 +320,34 @@ def test_default_weights_location():
 
 
 # --------------------------------------------------------------------------- planners
+# The planners run the networks' ONNX files with onnxruntime (heapgrasp.inference); these
+# tests export randomly initialised networks first.
 
 
-def test_grasp_planner_paper_resolution():
-    planner = NetworkGraspPlanner(_grasp_net(40))
+@pytest.fixture(scope="module")
+def onnx_files(tmp_path_factory):
+    """Exported networks: grasp and view at R = 16 and at the paper's 40."""
+    from heapgrasp.nets import export_onnx
+
+    folder = tmp_path_factory.mktemp("onnx")
+    nets = {
+        "grasp16": _grasp_net(),
+        "grasp40": _grasp_net(40, seed=3),
+        "view16": _view_net(),
+        "view40": _view_net(40, (40, 20), seed=4),
+    }
+    return {
+        name: (net, export_onnx(net, folder / f"{name}.onnx", provenance={}))
+        for name, net in nets.items()
+    }
+
+
+def test_grasp_planner_paper_resolution(onnx_files):
+    net, path = onnx_files["grasp40"]
+    planner = NetworkGraspPlanner(path)
     assert isinstance(planner, GraspPlanner)
     assert planner.name == "vgn-net" and planner.input_kind == "occupancy"
+    assert planner.resolution == 40 and planner.device == "cpu"
     frame = _frame(40)
     vols = planner.predict(_grid(40), frame)
     assert isinstance(vols, GraspVolumes) and vols.frame == frame
@@ -332,15 +355,18 @@ def test_grasp_planner_paper_resolution():
     assert vols.quaternions.shape == (40, 40, 40, 4)
     assert 0.0 <= vols.quality.min() and vols.quality.max() <= 1.0
     np.testing.assert_allclose(np.linalg.norm(vols.quaternions, axis=-1), 1.0, atol=1e-5)
+    # PyTorch's volumes
+    quality, rotation, width = _outputs(net, torch.from_numpy(_grid(40))[None, None])
+    np.testing.assert_allclose(vols.quality, quality[0, 0].numpy(), atol=1e-5)
+    np.testing.assert_allclose(vols.quaternions, rotation[0].permute(1, 2, 3, 0).numpy(), atol=1e-5)
+    np.testing.assert_allclose(vols.widths, width[0, 0].numpy(), atol=1e-5)
     # The volumes feed eq. 15 as they are.
     cands = select_candidates(vols, epsilon=0.0, sigma=1.0, nms_window=4)
     assert cands and all(np.isfinite(c.pose).all() for c in cands)
 
 
-def test_grasp_planner_batch_matches_single(tmp_path):
-    net = _grasp_net()
-    path = save_weights(net, tmp_path / "g.pt", kind="grasp", metadata={})
-    planner = NetworkGraspPlanner(path)
+def test_grasp_planner_batch_matches_single(onnx_files):
+    planner = NetworkGraspPlanner(onnx_files["grasp16"][1])
     frame = _frame(SMALL)
     grids = _grid(SMALL, seed=5, batch=3)
     batch = planner.predict_batch(grids, frame)
@@ -362,15 +388,15 @@ def test_grasp_planner_batch_matches_single(tmp_path):
         planner.predict_batch(bad, frame)
 
 
-def test_grasp_planner_accepts_read_only_grid():
-    planner = NetworkGraspPlanner(_grasp_net())
+def test_grasp_planner_accepts_read_only_grid(onnx_files):
+    planner = NetworkGraspPlanner(onnx_files["grasp16"][1])
     grid = _grid(SMALL)
     grid.flags.writeable = False
     planner.predict(grid, _frame(SMALL))
 
 
-def test_grasp_planner_rejects_bad_input():
-    planner = NetworkGraspPlanner(_grasp_net())
+def test_grasp_planner_rejects_bad_input(onnx_files):
+    planner = NetworkGraspPlanner(onnx_files["grasp16"][1])
     frame = _frame(SMALL)
     grid = _grid(SMALL)
     with pytest.raises(ValueError, match=r"grid must have shape \(16, 16, 16\), got \(16, 16\)"):
@@ -385,26 +411,34 @@ def test_grasp_planner_rejects_bad_input():
         planner.predict(grid.tolist(), frame)
     with pytest.raises(ValueError, match=r"frame\.resolution is 40, the grasp network reads 16³"):
         planner.predict(grid, _frame(40))
-    with pytest.raises(TypeError, match="GraspNet or a weights path"):
-        NetworkGraspPlanner(_view_net())
-    with pytest.raises(FileNotFoundError, match=r"missing\.pt"):
-        NetworkGraspPlanner("missing.pt")
+    with pytest.raises(TypeError, match="grasp network's ONNX file, got GraspNet"):
+        NetworkGraspPlanner(_grasp_net())
+    with pytest.raises(FileNotFoundError, match=r"missing\.onnx"):
+        NetworkGraspPlanner("missing.onnx")
 
 
-cuda = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
-# On a GPU, PyTorch may run convolutions in TF32 (a 10-bit mantissa, where cuDNN allows
-# it): the tolerance leaves room for that. On an H100 the outputs matched to 2e-6
-# (docs/benchmarks.md, "The networks on a GPU").
+def _ort_cuda() -> bool:
+    import onnxruntime
+
+    return "CUDAExecutionProvider" in onnxruntime.get_available_providers()
+
+
+cuda = pytest.mark.skipif(
+    not (torch.cuda.is_available() and _ort_cuda()),
+    reason="needs a CUDA device and onnxruntime-gpu",
+)
+# On a GPU, convolutions may run in TF32 (a 10-bit mantissa, where cuDNN allows it): the
+# tolerance leaves room for that.
 TF32_ATOL = 1e-2
 
 
 @cuda
-def test_grasp_planner_on_cuda_matches_cpu(tmp_path):
-    path = save_weights(_grasp_net(40, seed=3), tmp_path / "g.pt", kind="grasp", metadata={})
+def test_grasp_planner_on_cuda_matches_cpu(onnx_files):
+    path = onnx_files["grasp40"][1]
     frame = _frame(40)
     grids = _grid(40, seed=7, batch=2)
     gpu = NetworkGraspPlanner(path, device="cuda")
-    assert all(p.is_cuda for p in gpu.net.parameters())
+    assert gpu.network.providers[0] == "CUDAExecutionProvider"
     for a, b in zip(
         NetworkGraspPlanner(path).predict_batch(grids, frame),
         gpu.predict_batch(grids, frame),
@@ -419,12 +453,12 @@ def test_grasp_planner_on_cuda_matches_cpu(tmp_path):
 
 
 @cuda
-def test_view_scorer_on_cuda_matches_cpu():
-    net = _view_net(40, shape=(40, 20), seed=4)
+def test_view_scorer_on_cuda_matches_cpu(onnx_files):
+    path = onnx_files["view40"][1]
     occ = _grid(40, seed=8)
-    cpu = NetworkViewScorer(net).scores(occ)
-    gpu = NetworkViewScorer(net, device="cuda")
-    assert all(p.is_cuda for p in gpu.net.parameters())
+    cpu = NetworkViewScorer(path).scores(occ)
+    gpu = NetworkViewScorer(path, device="cuda")
+    assert gpu.network.providers[0] == "CUDAExecutionProvider"
     s = gpu.scores(occ)
     assert s.shape == (40, 20) and s.dtype == np.float32
     np.testing.assert_allclose(s, cpu, atol=TF32_ATOL)
@@ -442,57 +476,51 @@ def test_resolve_device_names_what_pytorch_sees():
             resolve_device(bad)  # type: ignore[arg-type]
 
 
-@cuda
-def test_resolve_device_on_cuda(tmp_path):
-    assert resolve_device("auto") == "cuda" and resolve_device("cuda:0") == "cuda:0"
-    path = save_weights(_grasp_net(), tmp_path / "g.pt", kind="grasp", metadata={})
-    planner = NetworkGraspPlanner(path, device=resolve_device("auto"))
-    assert all(p.is_cuda for p in planner.net.parameters())
-
-
-def test_the_config_picks_the_networks_device(tmp_path):
+def test_the_config_picks_the_networks_device(onnx_files):
+    from heapgrasp.inference import resolve_device as ort_device
     from heapgrasp.loop.config import ConfigError, RunConfig
     from heapgrasp.loop.phase import make_grasp_planner, make_view_scorer, net_device
 
-    grasp = save_weights(_grasp_net(40), tmp_path / "g.pt", kind="grasp", metadata={})
-    view = save_weights(_view_net(40, (40, 20)), tmp_path / "v.pt", kind="view", metadata={})
-    base = {"grasp_planner": "network", "grasp_weights": str(grasp)}
-    base |= {"view_planner": "network", "view_weights": str(view)}
+    base = {"grasp_planner": "network", "grasp_weights": str(onnx_files["grasp40"][1])}
+    base |= {"view_planner": "network", "view_weights": str(onnx_files["view40"][1])}
+    base |= {"target_radius": 0.0}  # a one-channel view network
     cpu = RunConfig.from_mapping(base)
     assert net_device(cpu) == "cpu"
-    assert make_grasp_planner(cpu).device.type == "cpu"
-    assert make_view_scorer(cpu).device.type == "cpu"
+    assert make_grasp_planner(cpu).device == "cpu"
+    assert make_view_scorer(cpu).device == "cpu"
     auto = RunConfig.from_mapping({**base, "net_device": "auto"})
-    assert net_device(auto) == resolve_device("auto")
-    missing = RunConfig.from_mapping({**base, "net_device": f"cuda:{torch.cuda.device_count()}"})
-    with pytest.raises(ConfigError, match=r"net_device: 'cuda:\d+' asked for, but PyTorch sees"):
-        make_grasp_planner(missing)
-    with pytest.raises(ConfigError, match="net_device"):
-        make_view_scorer(missing)
+    assert net_device(auto) == ort_device("auto")
+    if not _ort_cuda():
+        missing = RunConfig.from_mapping({**base, "net_device": "cuda:0"})
+        match = r"net_device: 'cuda:0' asked for, but this onnxruntime has no CUDAExecution"
+        with pytest.raises(ConfigError, match=match):
+            make_grasp_planner(missing)
+        with pytest.raises(ConfigError, match="net_device"):
+            make_view_scorer(missing)
 
 
-def test_view_scorer_scores(tmp_path):
-    net = _view_net()
-    path = save_weights(net, tmp_path / "v.pt", kind="view", metadata={})
+def test_view_scorer_scores(onnx_files):
+    net, path = onnx_files["view16"]
     scorer = NetworkViewScorer(path)
     assert isinstance(scorer, ViewScorer)
     assert scorer.name == "view-net" and scorer.view_shape == (12, 6)
+    assert scorer.in_channels == 1 and scorer.resolution == SMALL
     occ = _grid(SMALL, seed=2)
     s = scorer.scores(occ)
     assert s.shape == (12, 6) and s.dtype == np.float32
     assert 0.0 <= s.min() and s.max() <= 1.0
-    np.testing.assert_array_equal(s, NetworkViewScorer(net).scores(occ))
+    (expected,) = _outputs(net, torch.from_numpy(occ)[None, None])
+    np.testing.assert_allclose(s, expected[0].numpy(), atol=1e-5)
     with pytest.raises(ValueError, match=r"occupancy must have shape \(16, 16, 16\)"):
         scorer.scores(_grid(8))
     with pytest.raises(ValueError, match="occupancy holds NaN"):
         scorer.scores(np.full((SMALL,) * 3, np.nan, np.float32))
-    with pytest.raises(ValueError, match=r"view-network weights.*expected grasp"):
+    with pytest.raises(ValueError, match=r"holds a 'view-network' .*expected a 'grasp-network'"):
         NetworkGraspPlanner(path)
 
 
-def test_view_scorer_paper_resolution_and_context():
-    torch.manual_seed(0)
-    scorer = NetworkViewScorer(ViewNet())
+def test_view_scorer_paper_resolution_and_context(onnx_files):
+    scorer = NetworkViewScorer(onnx_files["view40"][1])
     grid = hg.OccupancyGrid((-0.15, -0.15, 0.0), 0.30, 40)
     ctx = ViewContext(grid, np.eye(4), np.zeros((40, 20, 4, 4)), None, None, 0.9)
     s = scorer.scores(ctx)
@@ -503,25 +531,25 @@ def test_view_scorer_paper_resolution_and_context():
         scorer.scores(ctx)
 
 
-def test_no_torch_import_at_package_import_and_clear_error():
+def test_no_torch_import_at_run_time_and_clear_error():
     code = textwrap.dedent(
         """
         import sys
         sys.modules["torch"] = None  # as if PyTorch were not installed
         import heapgrasp, heapgrasp.planning.volumes, heapgrasp.planning.views
         import heapgrasp.planning.grasp_network as gn, heapgrasp.planning.view_network as vn
-        for make in (lambda: gn.NetworkGraspPlanner("w.pt"),
-                     lambda: vn.NetworkViewScorer("w.pt")):
+        for make in (lambda: gn.NetworkGraspPlanner("w.onnx"),
+                     lambda: vn.NetworkViewScorer("w.onnx")):
             try:
                 make()
-            except ImportError as exc:
-                assert "heapgrasp[nets]" in str(exc) and "PyTorch" in str(exc), exc
+            except FileNotFoundError as exc:  # no ImportError: the planners need no PyTorch
+                assert "w.onnx" in str(exc), exc
             else:
-                raise AssertionError("no ImportError")
+                raise AssertionError("no FileNotFoundError")
         try:
             import heapgrasp.nets
         except ImportError as exc:
-            assert "install heapgrasp[nets] (PyTorch)" in str(exc), exc
+            assert "install heapgrasp[train]" in str(exc), exc
         else:
             raise AssertionError("no ImportError")
         print("ok")

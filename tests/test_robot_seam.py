@@ -1,5 +1,6 @@
 """The robot seam: one whole HEAPGrasp phase and a grasp on a robot that is not the
-simulator, with PyBullet (and PyTorch) blocked; the layers of the package."""
+simulator, with PyBullet (and PyTorch) blocked, with the oracle's views and with the
+view network's; the layers of the package."""
 
 from __future__ import annotations
 
@@ -161,28 +162,78 @@ def test_the_tests_of_perception_and_planning_need_no_pybullet() -> None:
     assert done.returncode == 0, done.stderr[-3000:]
 
 
-def test_a_run_that_needs_a_missing_dependency_fails_before_any_scene(tmp_path: Path) -> None:
+def test_a_run_that_needs_missing_weights_fails_before_any_scene(tmp_path: Path) -> None:
     out = tmp_path / "run"
     script = BLOCK + textwrap.dedent(
         f"""
         sys.meta_path.insert(0, Blocked(("torch",)))
         from heapgrasp.cli import main
-        raise SystemExit(main(["run", "--view-planner", "network", "--out", {str(out)!r}]))
+        from heapgrasp.inference import shipped_weights
+        views = ["--view-weights", {str(tmp_path / "none.onnx")!r}]
+        if shipped_weights("view-network") is None:
+            views = []  # no view network ships: the run says so
+        raise SystemExit(main(["run", "--view-planner", "network", *views, "--out", {str(out)!r}]))
         """
     )
     done = subprocess.run(
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=False
     )
     assert done.returncode == 2, done.stderr[-2000:]
-    assert "heapgrasp[nets]" in done.stderr and "Traceback" not in done.stderr
+    assert "view_weights: " in done.stderr and "Traceback" not in done.stderr
+    assert "torch" not in done.stderr  # the network needs onnxruntime, not PyTorch
     assert not out.exists(), "nothing is written before the run can start"
     # a weights file that does not exist: the same, naming the file
     from heapgrasp.cli import main
 
-    missing = tmp_path / "views.pt"
+    missing = tmp_path / "views.onnx"
     argv = ["run", "--view-planner", "network", "--view-weights", str(missing)]
     assert main([*argv, "--out", str(out)]) == 2
     assert not out.exists()
+
+
+def test_a_phase_with_the_view_network_runs_on_a_robot_without_torch(tmp_path: Path) -> None:
+    """HEAPGrasp planning its views with the network (a small randomly initialised
+    two-channel ViewNet, exported to ONNX) on the fake robot: no scene truth, no PyBullet,
+    no PyTorch."""
+    torch = pytest.importorskip("torch")
+    from heapgrasp.nets import ViewNet, export_onnx
+
+    torch.manual_seed(0)
+    net = ViewNet(in_channels=2, encoder_channels=(4, 8, 8), compress_channels=8)
+    weights = export_onnx(net, tmp_path / "view.onnx", provenance={"data": "none (test)"})
+    script = BLOCK + textwrap.dedent(
+        f"""
+        import json
+        BLOCKED = ("pybullet", "pybullet_data", "torch", "rerun")
+        sys.meta_path.insert(0, Blocked(BLOCKED))
+        sys.path.insert(0, {str(TESTS)!r})
+        from fake_robot import FakeRobot, FakeScene, RedSegmenter
+        from heapgrasp.loop.config import RunConfig
+        from heapgrasp.loop.phase import build_pipeline
+        from heapgrasp.planning.view_network import NetworkViewScorer
+
+        robot = FakeRobot(FakeScene({BOXES!r}))
+        config = RunConfig(view_planner="network", view_weights={str(weights)!r})
+        pipeline = build_pipeline(config, robot, segmenter=RedSegmenter())
+        assert isinstance(pipeline.view_scorer, NetworkViewScorer)
+        assert pipeline.view_scorer.in_channels == 2
+        planned = pipeline.plan()
+        print(json.dumps({{
+            "grasp": planned.grasp is not None,
+            "paths": len(robot.arm.paths),
+            "imported": [n for n in BLOCKED if n in sys.modules],
+            "nets": "heapgrasp.nets" in sys.modules,
+        }}))
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=600, check=False
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result["imported"] == [] and not result["nets"]
+    assert result["paths"] == RunConfig().L  # L view waypoints chosen from the network's scores
+    assert result["grasp"]
 
 
 def test_the_loop_plans_for_the_robots_gripper() -> None:

@@ -29,6 +29,7 @@ from heapgrasp.planning.critic import (
     GraspCritic,
     read_critic_arrays,
 )
+from heapgrasp.planning.critic_net import ARRAYS, convert_npz
 
 N_FEATURES = 2 * int(np.prod(CROP_SHAPE)) + N_SCALARS
 
@@ -63,16 +64,71 @@ def _message(exc: pytest.ExceptionInfo[BaseException]) -> str:
 
 
 @pytest.fixture(scope="module")
-def linear_critic(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A small valid linear critic file (format version 1)."""
+def legacy(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Critic files of the former ``.npz`` format (the input of ``critic convert``): a
+    small linear one (version 1) and the shipped cnn (version 2), rebuilt from the arrays
+    of the shipped ONNX file."""
+    onnx = pytest.importorskip("onnx")
+    from onnx import numpy_helper
+
+    folder = tmp_path_factory.mktemp("critic")
     rng = np.random.default_rng(0)
-    x = rng.random((120, N_FEATURES)).round()
-    x[:, -N_SCALARS] = rng.random(120)
-    y = (x[:, -N_SCALARS] > 0.5).astype(float)
-    critic = GraspCritic.fit(x, y, components=4)
-    path = tmp_path_factory.mktemp("critic") / "linear.npz"
-    critic.save(path, command="test")
+    n_crop = N_FEATURES - N_SCALARS
+    meta = {"crop_shape": list(CROP_SHAPE)}
+    np.savez_compressed(
+        folder / "linear.npz",
+        format=np.str_("heapgrasp-critic"),
+        version=np.int64(1),
+        mean=rng.random(N_FEATURES),
+        scale=rng.random(N_FEATURES) + 0.5,
+        components=rng.normal(size=(4, n_crop)).astype(np.float32),
+        weights=rng.normal(size=4 + N_SCALARS + 1),
+        threshold=np.float64(0.7),
+        candidate_epsilon=np.float64(0.2),
+        metadata=np.str_(json.dumps({**meta, "model": "linear", "command": "test"})),
+    )
+    model = onnx.load(DEFAULT_CRITIC)
+    w = {i.name: numpy_helper.to_array(i) for i in model.graph.initializer}
+    shipped = GraspCritic.load(DEFAULT_CRITIC)
+    np.savez_compressed(
+        folder / "cnn.npz",
+        format=np.str_("heapgrasp-critic"),
+        version=np.int64(2),
+        **{f"net_{k}": w[k].astype(np.float64) for k in ARRAYS},
+        mean=w["mean"].astype(np.float64),
+        scale=w["scale"].astype(np.float64),
+        components=np.zeros((0, n_crop), np.float32),
+        weights=np.zeros(N_SCALARS + 1),
+        threshold=np.float64(shipped.threshold),
+        candidate_epsilon=np.float64(shipped.candidate_epsilon),
+        metadata=np.str_(json.dumps({**meta, "model": "cnn", "command": "test"})),
+    )
+    return {"linear": folder / "linear.npz", "cnn": folder / "cnn.npz"}
+
+
+def _onnx_critic_with(path: Path, change: Callable[[Any], None]) -> Path:
+    """The shipped critic with ``change`` made to its ONNX model, sealed again."""
+    onnx = pytest.importorskip("onnx")
+    from heapgrasp.inference import META_SHA256, seal
+
+    model = onnx.load(DEFAULT_CRITIC)
+    change(model)
+    keep = [(e.key, e.value) for e in model.metadata_props if e.key != META_SHA256]
+    del model.metadata_props[:]
+    for key, value in keep:
+        entry = model.metadata_props.add()
+        entry.key, entry.value = key, value
+    path.write_bytes(seal(model.SerializeToString()))
     return path
+
+
+def _nan_mean(model: Any) -> None:
+    from onnx import numpy_helper
+
+    init = next(i for i in model.graph.initializer if i.name == "mean")
+    a = numpy_helper.to_array(init).copy()
+    a[0] = np.nan
+    init.CopyFrom(numpy_helper.from_array(a, "mean"))
 
 
 def _arrays(path: Path) -> dict[str, np.ndarray]:
@@ -120,13 +176,21 @@ def _meta(**changes: Any) -> Callable[[dict[str, np.ndarray]], None]:
     return change
 
 
-def test_valid_critic_files_load(linear_critic: Path) -> None:
-    assert GraspCritic.load(linear_critic).model == "linear"
+def test_valid_critic_files_load(legacy: dict[str, Path], tmp_path: Path) -> None:
     shipped = GraspCritic.load(DEFAULT_CRITIC)  # the shipped file passes every check
     assert shipped.model == "cnn"
-    arrays, meta = read_critic_arrays(DEFAULT_CRITIC)
-    assert meta["crop_shape"] == list(CROP_SHAPE)
-    assert arrays["scale"].min() > 0
+    assert shipped.network.hparams["crop_shape"] == list(CROP_SHAPE)
+    for name in ("linear", "cnn"):
+        arrays, meta = read_critic_arrays(legacy[name])
+        assert meta["crop_shape"] == list(CROP_SHAPE) and arrays["scale"].min() > 0
+    # critic convert: the former file becomes the same critic
+    out = convert_npz(legacy["cnn"], tmp_path / "cnn.onnx", command="test")
+    back = GraspCritic.load(out)
+    assert back.model == "cnn" and back.metadata["converted"]["from"] == "cnn.npz"
+    x = np.random.default_rng(0).random((50, N_FEATURES)).round()
+    np.testing.assert_array_equal(back.probability(x), shipped.probability(x))
+    linear = GraspCritic.load(convert_npz(legacy["linear"], tmp_path / "linear.onnx"))
+    assert linear.model == "linear" and linear.threshold == pytest.approx(0.7)
 
 
 def test_weights_error_type() -> None:
@@ -138,8 +202,8 @@ def test_weights_error_type() -> None:
     assert type(back) is WeightsError and str(back) == str(err)
 
 
-def test_broken_critic_files(tmp_path: Path) -> None:
-    data = DEFAULT_CRITIC.read_bytes()
+def test_broken_critic_files(legacy: dict[str, Path], tmp_path: Path) -> None:
+    data = legacy["cnn"].read_bytes()
     cases = {
         "empty.npz": (b"", r"empty file \(0 bytes\)"),
         "truncated.npz": (data[: len(data) // 2], "corrupt or truncated .*its end is missing"),
@@ -151,23 +215,45 @@ def test_broken_critic_files(tmp_path: Path) -> None:
         path = tmp_path / name
         path.write_bytes(content)
         with pytest.raises(WeightsError, match=match) as exc:
-            GraspCritic.load(path)
+            read_critic_arrays(path)
         assert _message(exc).startswith(f"{path}: "), name
         assert exc.value.path == path
+    # The ONNX critic: the same failures, named the same way.
+    onnx_data = DEFAULT_CRITIC.read_bytes()
+    cases = {
+        "empty.onnx": (b"", r"empty file \(0 bytes\)"),
+        "truncated.onnx": (onnx_data[: len(onnx_data) // 2], "not a valid ONNX model"),
+        "tail.onnx": (onnx_data[:-10], "not a valid ONNX model"),
+        "junk.onnx": (b"this is not a network", "not a valid ONNX model"),
+        "critic.npz": (data, r"a zip archive \(a PyTorch .pt or numpy .npz file\?\)"),
+    }
+    for name, (content, match) in cases.items():
+        path = tmp_path / name
+        path.write_bytes(content)
+        with pytest.raises(WeightsError, match=match) as exc:
+            GraspCritic.load(path)
+        assert _message(exc).startswith(f"{path}: "), name
 
 
-def test_garbled_critic_is_caught_by_its_checksums(tmp_path: Path) -> None:
-    offset = _member_data_offset(DEFAULT_CRITIC, "scale.npy")
+def test_garbled_critic_is_caught_by_its_checksums(legacy: dict[str, Path], tmp_path: Path) -> None:
+    src = legacy["cnn"]
+    offset = _member_data_offset(src, "scale.npy")
     path = tmp_path / "garbled.npz"
-    path.write_bytes(_garble(DEFAULT_CRITIC.read_bytes(), offset + 200))
+    path.write_bytes(_garble(src.read_bytes(), offset + 200))
     match = r"garbled\.npz: corrupt .*member 'scale\.npy' is garbled"
     with pytest.raises(WeightsError, match=match):
-        GraspCritic.load(path)
+        read_critic_arrays(path)
     # Garbled in a zip header too: still a WeightsError naming the file.
     header = tmp_path / "header.npz"
-    header.write_bytes(_garble(DEFAULT_CRITIC.read_bytes(), 0, 8))
+    header.write_bytes(_garble(src.read_bytes(), 0, 8))
     with pytest.raises(WeightsError, match=r"header\.npz: "):
-        GraspCritic.load(header)
+        read_critic_arrays(header)
+    # The ONNX file: weights garbled in place still parse; its SHA-256 does not match.
+    data = DEFAULT_CRITIC.read_bytes()
+    onnx_path = tmp_path / "garbled.onnx"
+    onnx_path.write_bytes(_garble(data, len(data) // 3, 16))
+    with pytest.raises(WeightsError, match=r"garbled\.onnx: garbled: .*SHA-256"):
+        GraspCritic.load(onnx_path)
 
 
 @pytest.mark.parametrize(
@@ -201,22 +287,23 @@ def test_garbled_critic_is_caught_by_its_checksums(tmp_path: Path) -> None:
     ],
 )
 def test_bad_linear_critic(
-    linear_critic: Path,
+    legacy: dict[str, Path],
     tmp_path: Path,
     change: Callable[[dict[str, np.ndarray]], None],
     match: str,
 ) -> None:
-    path = _critic_with(linear_critic, tmp_path / "bad.npz", change)
+    path = _critic_with(legacy["linear"], tmp_path / "bad.npz", change)
     with pytest.raises(WeightsError, match=match) as exc:
-        GraspCritic.load(path)
+        read_critic_arrays(path)
     assert _message(exc).startswith(f"{path}: ")
 
 
 @pytest.mark.parametrize("key", ["format", "version", "mean", "scale", "components", "metadata"])
-def test_missing_critic_key(linear_critic: Path, tmp_path: Path, key: str) -> None:
-    path = _critic_with(linear_critic, tmp_path / "bad.npz", lambda a: a.pop(key))
+def test_missing_critic_key(legacy: dict[str, Path], tmp_path: Path, key: str) -> None:
+    path = _critic_with(legacy["linear"], tmp_path / "bad.npz", lambda a: a.pop(key))
     with pytest.raises(WeightsError, match=rf"bad\.npz: missing key '{key}'"):
-        GraspCritic.load(path)
+        convert_npz(path, tmp_path / "never.onnx")
+    assert not (tmp_path / "never.onnx").exists()
 
 
 @pytest.mark.parametrize(
@@ -236,24 +323,32 @@ def test_missing_critic_key(linear_critic: Path, tmp_path: Path, key: str) -> No
     ],
 )
 def test_bad_cnn_critic(
-    tmp_path: Path, change: Callable[[dict[str, np.ndarray]], None], match: str
+    legacy: dict[str, Path],
+    tmp_path: Path,
+    change: Callable[[dict[str, np.ndarray]], None],
+    match: str,
 ) -> None:
-    path = _critic_with(DEFAULT_CRITIC, tmp_path / "cnn.npz", change)
+    path = _critic_with(legacy["cnn"], tmp_path / "cnn.npz", change)
     with pytest.raises(WeightsError, match=match) as exc:
-        GraspCritic.load(path)
+        read_critic_arrays(path)
     assert _message(exc).startswith(f"{path}: ")
 
 
 def test_critic_path_that_is_not_a_file(tmp_path: Path) -> None:
     with pytest.raises(WeightsError, match=r"not a file"):
         GraspCritic.load(tmp_path)
+    with pytest.raises(FileNotFoundError, match=r"nothere\.onnx"):
+        GraspCritic.load(tmp_path / "nothere.onnx")
     with pytest.raises(FileNotFoundError, match=r"nothere\.npz"):
-        GraspCritic.load(tmp_path / "nothere.npz")
+        read_critic_arrays(tmp_path / "nothere.npz")
+
+
+NAN_CRITIC = "output 'logits' holds NaN or infinity on an all-zero input"
 
 
 def test_bad_critic_is_a_config_error_before_any_scene(tmp_path: Path) -> None:
-    path = _critic_with(DEFAULT_CRITIC, tmp_path / "nan.npz", _poke("mean", 0, np.nan))
-    with pytest.raises(ConfigError, match=rf"grasp_critic: {path}: NaN in 'mean'") as exc:
+    path = _onnx_critic_with(tmp_path / "nan.onnx", _nan_mean)
+    with pytest.raises(ConfigError, match=rf"grasp_critic: {path}: {NAN_CRITIC}") as exc:
         make_critic(RunConfig(grasp_critic=str(path)))
     assert isinstance(exc.value.__cause__, WeightsError)
 
@@ -270,17 +365,18 @@ def _cli_refuses(args: list[str], out: Path, capsys: pytest.CaptureFixture[str])
 @pytest.mark.parametrize(
     ("content", "match"),
     [
-        (None, "NaN in 'mean'"),
+        (None, NAN_CRITIC),
         (b"", "empty file"),
-        (b"PK\x03\x04garbage", "end is missing"),
+        (b"PK\x03\x04garbage", "a zip archive"),
+        (b"garbage", "not a valid ONNX model"),
     ],
 )
 def test_heapgrasp_run_refuses_a_bad_critic(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], content: bytes | None, match: str
 ) -> None:
-    path = tmp_path / "bad.npz"
+    path = tmp_path / "bad.onnx"
     if content is None:
-        _critic_with(DEFAULT_CRITIC, path, _poke("mean", 0, np.nan))
+        _onnx_critic_with(path, _nan_mean)
     else:
         path.write_bytes(content)
     err = _cli_refuses(["--set", f"grasp_critic={path}"], tmp_path / "out", capsys)
@@ -486,23 +582,49 @@ def test_network_path_that_is_not_a_file(tmp_path: Path) -> None:
 
 
 def test_bad_network_is_a_config_error_before_any_scene(
-    nets: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    """The run loads the networks' ONNX files (heapgrasp.inference); a bad one stops it
+    before any scene."""
+    torch = pytest.importorskip("torch")
+    onnx = pytest.importorskip("onnx")
+    from heapgrasp.inference import META_SHA256, seal
     from heapgrasp.loop.phase import make_grasp_planner, make_view_scorer
+    from heapgrasp.nets import GraspNet, ViewNet, export_onnx
+    from onnx import numpy_helper
 
-    nan = _state(_fill(float("nan")))
-    grasp = _net_with(nets["grasp"], tmp_path / "g.pt", nan)
-    view = _net_with(nets["view"], tmp_path / "v.pt", nan)
+    def nan_copy(src: Path, out: Path) -> Path:
+        model = onnx.load(src)
+        init = next(i for i in model.graph.initializer if numpy_helper.to_array(i).size > 10)
+        a = numpy_helper.to_array(init).copy()
+        a.flat[1] = np.nan
+        init.CopyFrom(numpy_helper.from_array(a, init.name))
+        keep = [(e.key, e.value) for e in model.metadata_props if e.key != META_SHA256]
+        del model.metadata_props[:]
+        for key, value in keep:
+            entry = model.metadata_props.add()
+            entry.key, entry.value = key, value
+        out.write_bytes(seal(model.SerializeToString()))
+        return out
+
+    torch.manual_seed(0)
+    small = {"encoder_channels": (4, 8, 8)}
+    grasp = export_onnx(
+        GraspNet(40, decoder_channels=(8, 8, 4), **small), tmp_path / "g0.onnx", provenance={}
+    )
+    view = export_onnx(ViewNet(40, **small), tmp_path / "v0.onnx", provenance={})
+    grasp, view = nan_copy(grasp, tmp_path / "g.onnx"), nan_copy(view, tmp_path / "v.onnx")
+    nan = "holds NaN or infinity on an all-zero input"
     config = RunConfig.from_mapping({"grasp_planner": "network", "grasp_weights": str(grasp)})
-    with pytest.raises(ConfigError, match=rf"grasp_weights: {grasp}: weights hold NaN"):
+    with pytest.raises(ConfigError, match=rf"grasp_weights: {grasp}: output '.*' {nan}"):
         make_grasp_planner(config)
     config = RunConfig.from_mapping({"view_planner": "network", "view_weights": str(view)})
-    with pytest.raises(ConfigError, match=rf"view_weights: {view}: weights hold NaN"):
+    with pytest.raises(ConfigError, match=rf"view_weights: {view}: output 'scores' {nan}"):
         make_view_scorer(config)
     args = ["--grasp-planner", "network", "--grasp-weights", str(grasp)]
     err = _cli_refuses(args, tmp_path / "out", capsys)
-    assert f"grasp_weights: {grasp}: weights hold NaN" in err
-    empty = tmp_path / "empty.pt"
+    assert f"grasp_weights: {grasp}: output" in err
+    empty = tmp_path / "empty.onnx"
     empty.write_bytes(b"")
     args = ["--view-planner", "network", "--view-weights", str(empty)]
     err = _cli_refuses(args, tmp_path / "out2", capsys)
@@ -510,6 +632,6 @@ def test_bad_network_is_a_config_error_before_any_scene(
 
 
 def test_copied_shipped_critic_still_loads(tmp_path: Path) -> None:
-    copy = tmp_path / "critic.npz"
+    copy = tmp_path / "critic.onnx"
     shutil.copy(DEFAULT_CRITIC, copy)
     assert GraspCritic.load(copy).threshold == pytest.approx(0.6)

@@ -1,17 +1,21 @@
-"""``heapgrasp critic data|train|eval``: the grasp critic's data, weights and evaluation.
+"""``heapgrasp critic data|train|eval|convert``: the grasp critic's data, weights and
+evaluation.
 
 ::
 
     heapgrasp critic data --scenes 240 --workers 2 --out runs/critic-data
-    heapgrasp critic train runs/critic-data --model cnn --out python/heapgrasp/weights/critic.npz
-    heapgrasp critic eval python/heapgrasp/weights/critic.npz runs/other-data
+    heapgrasp critic train runs/critic-data --model cnn --out python/heapgrasp/weights/critic.onnx
+    heapgrasp critic eval python/heapgrasp/weights/critic.onnx runs/other-data
+    heapgrasp critic convert old-critic.npz critic.onnx
 
 ``data`` runs HEAPGrasp's phases on train-split scenes and tries every candidate in the
 simulator (:mod:`heapgrasp.data.critic`); an interrupted run continues where it
 stopped. ``train`` cross-validates by scene (:mod:`heapgrasp.planning.critic_train`),
 fits on all scenes, and writes the critic with its command and the cross-validated
 measurements, plus ``FILE.json`` with the same report. ``eval`` scores a critic file on
-scene files without refitting and prints the same report.
+scene files without refitting and prints the same report. ``convert`` turns a critic
+of the former ``.npz`` format into the ONNX file heapgrasp runs
+(:func:`heapgrasp.planning.critic_net.convert_npz`).
 """
 
 from __future__ import annotations
@@ -140,6 +144,17 @@ def _train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _convert(args: argparse.Namespace) -> int:
+    from heapgrasp.planning.critic import GraspCritic
+    from heapgrasp.planning.critic_net import convert_npz
+
+    command = "heapgrasp " + shlex.join(getattr(args, "argv", sys.argv[1:]))
+    out = convert_npz(args.src, args.dst, command=command)
+    critic = GraspCritic.load(out)
+    print(f"wrote {out} ({critic.model} critic, threshold {critic.threshold:g})")
+    return 0
+
+
 def _report_arguments(parser: argparse.ArgumentParser) -> None:
     """The report's options, shared by ``train`` and ``eval``."""
     parser.add_argument(
@@ -156,7 +171,7 @@ def _report_arguments(parser: argparse.ArgumentParser) -> None:
 def add_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
 ) -> argparse.ArgumentParser:
-    """Adds ``critic data``, ``critic train`` and ``critic eval``."""
+    """Adds ``critic data``, ``critic train``, ``critic eval`` and ``critic convert``."""
     p = subparsers.add_parser(
         "critic",
         help="the learned grasp critic: generate its data, train it, evaluate it",
@@ -242,11 +257,11 @@ def add_parser(
         description=(
             "Cross-validates by scene, fits the model (PCA + logistic regression, or the "
             "3-D CNN with --model cnn, which needs PyTorch) on all scenes and writes the "
-            "critic (.npz) and its report (.json)."
+            "critic (.onnx) and its report (.json)."
         ),
     )
     t.add_argument("data", nargs="+", help="folders of scene files from 'heapgrasp critic data'")
-    t.add_argument("--out", required=True, help="critic file to write (.npz)")
+    t.add_argument("--out", required=True, help="critic file to write (.onnx)")
     t.add_argument(
         "--model",
         choices=("linear", "cnn"),
@@ -284,8 +299,19 @@ def add_parser(
             "each would pick (the report of 'critic train', without refitting)."
         ),
     )
-    e.add_argument("critic", help="critic file (.npz), e.g. python/heapgrasp/weights/critic.npz")
+    e.add_argument("critic", help="critic file (.onnx), e.g. python/heapgrasp/weights/critic.onnx")
     e.add_argument("data", nargs="+", help="folders of scene files from 'heapgrasp critic data'")
     _report_arguments(e)
     e.set_defaults(func=_evaluate)
+    c = sub.add_parser(
+        "convert",
+        help="convert a critic of the former .npz format to ONNX",
+        description=(
+            "Reads a critic .npz file (checked whole) and writes the same model, "
+            "standardisation and thresholds as the ONNX file heapgrasp runs."
+        ),
+    )
+    c.add_argument("src", help="critic file of the former format (.npz)")
+    c.add_argument("dst", help="ONNX critic file to write")
+    c.set_defaults(func=_convert)
     return p

@@ -40,7 +40,6 @@ and a robot; every stage can also be passed in (any object satisfying its protoc
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,6 +52,7 @@ from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
 from heapgrasp.geometry.motion import MotionLimits, ViewSphere, plan_waypoints, time_path
+from heapgrasp.inference import Kind, resolve_device, shipped_weights
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.observe import PhaseObserver
 from heapgrasp.loop.policies import EarlyStop, RimSweep
@@ -567,34 +567,29 @@ def make_segmenter(config: RunConfig, truth: MaskSource, seed: int = 0) -> Segme
     return IdealSegmenter(truth)
 
 
-def _weights(path: str | None, kind: str, option: str) -> Path:
+def _weights(path: str | None, kind: Kind, option: str) -> Path:
     if path:
         p = Path(path)
         if not p.is_file():
             raise ConfigError(f"{option}: weights file not found: {p}")
         return p
-    from heapgrasp.nets.weights import find_default
-
-    found = find_default(kind)  # type: ignore[arg-type]
+    found = shipped_weights(kind)
     if found is None:
         raise ConfigError(
-            f"{option}: no {kind}-network weights ship with this version; pass a weights "
-            f"file, or use the analytic/oracle planners"
+            f"{option}: no {kind} weights ship with this version; pass an ONNX weights "
+            f"file (heapgrasp.nets.export_onnx writes one), or use the analytic/oracle planners"
         )
     return found
 
 
 def net_device(config: RunConfig) -> str:
     """The device the networks run on (:attr:`RunConfig.net_device`; ``auto`` resolved by
-    :func:`heapgrasp.nets.resolve_device`). A CUDA device that PyTorch cannot see is a
+    :func:`heapgrasp.inference.resolve_device`). A CUDA device onnxruntime cannot use is a
     :class:`ConfigError`, not a quiet run on the CPU."""
-    # heapgrasp.nets first: without PyTorch it raises the "install heapgrasp[nets]" hint.
-    nets = importlib.import_module("heapgrasp.nets")
     try:
-        device: str = nets.resolve_device(config.net_device)
+        return resolve_device(config.net_device)
     except ValueError as err:
         raise ConfigError(f"net_device: {err}") from None
-    return device
 
 
 def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND) -> GraspPlanner:
@@ -607,12 +602,19 @@ def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND)
     from heapgrasp.geometry.errors import WeightsError
     from heapgrasp.planning.grasp_network import NetworkGraspPlanner
 
-    weights = _weights(config.grasp_weights, "grasp", "grasp_weights")
+    weights = _weights(config.grasp_weights, "grasp-network", "grasp_weights")
     device = net_device(config)
     try:
         planner = NetworkGraspPlanner(weights, device=device)
     except WeightsError as err:  # a bad file is a bad setting: one clear error, before any scene
         raise ConfigError(f"grasp_weights: {err}") from err
+    except ValueError as err:  # the device cannot run it
+        raise ConfigError(f"net_device: {err}") from err
+    if planner.resolution != config.resolution:
+        raise ConfigError(
+            f"grasp_weights: {weights} reads {planner.resolution}³ grids, the run's grid is "
+            f"{config.resolution}³ (resolution)"
+        )
     if config.method == "vgn":
         planner.input_kind = "tsdf"
     return planner
@@ -644,12 +646,33 @@ def make_view_scorer(config: RunConfig) -> ViewScorer | None:
     from heapgrasp.geometry.errors import WeightsError
     from heapgrasp.planning.view_network import NetworkViewScorer
 
-    weights = _weights(config.view_weights, "view", "view_weights")
+    weights = _weights(config.view_weights, "view-network", "view_weights")
     device = net_device(config)
     try:
-        return NetworkViewScorer(weights, device=device)
+        scorer = NetworkViewScorer(weights, device=device, target_radius=config.target_radius)
     except WeightsError as err:
         raise ConfigError(f"view_weights: {err}") from err
+    except ValueError as err:  # the device cannot run it
+        raise ConfigError(f"net_device: {err}") from err
+    if scorer.resolution != config.resolution:
+        raise ConfigError(
+            f"view_weights: {weights} reads {scorer.resolution}³ grids, the run's grid is "
+            f"{config.resolution}³ (resolution)"
+        )
+    if scorer.view_shape != (config.U, config.V):
+        u, v = scorer.view_shape
+        raise ConfigError(
+            f"view_weights: {weights} scores {u}×{v} candidates, the run has "
+            f"{config.U}×{config.V} (U, V)"
+        )
+    if scorer.in_channels == 1 and config.target_radius > 0:
+        raise ConfigError(
+            f"view_weights: {weights} is a one-channel view network (occupancy only): it "
+            f"cannot count eq. 14 on the target's column that target_radius = "
+            f"{config.target_radius:g} asks for; set target_radius = 0 (the paper's eq. 14 "
+            f"over the whole grid) or use two-channel weights (occupancy + region)"
+        )
+    return scorer
 
 
 def build_pipeline(

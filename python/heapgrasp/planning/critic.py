@@ -24,9 +24,12 @@ Features of a candidate (:func:`candidate_features`):
 The model (:class:`GraspCritic`), after standardisation: either (``linear``) PCA of the
 crops and logistic regression with an L2 penalty, fitted by Newton's method, or
 (``cnn``) a small 3-D convolutional network on the crops and the scalars
-(:mod:`heapgrasp.planning.critic_net`; trained with PyTorch, run in numpy). Trained on
-the train split's objects with :mod:`heapgrasp.data.critic`; the weights are
-one ``.npz`` of arrays plus the command and measurements that made them.
+(:mod:`heapgrasp.planning.critic_net`; trained with PyTorch). Trained on the train
+split's objects with :mod:`heapgrasp.data.critic`. Either model, its standardisation
+included, is one ONNX file holding the command and measurements that made it, run with
+onnxruntime as every shipped network (:class:`heapgrasp.inference.OnnxNetwork`);
+:func:`read_critic_arrays` reads the former ``.npz`` files for
+:func:`heapgrasp.planning.critic_net.convert_npz`.
 """
 
 from __future__ import annotations
@@ -35,11 +38,12 @@ import dataclasses
 import datetime as _dt
 import json
 import math
+import os
 import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -47,10 +51,8 @@ import numpy.typing as npt
 from heapgrasp.geometry.errors import WeightsError, check_archive
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.geometry.gripper import PANDA_HAND
+from heapgrasp.inference import OnnxNetwork
 from heapgrasp.planning.volumes import GraspCandidate
-
-if TYPE_CHECKING:
-    from heapgrasp.planning.critic_net import ConvCritic
 
 __all__ = [
     "CRITIC_FORMAT",
@@ -74,10 +76,11 @@ CROP_SHAPE = (7, 13, 12)
 to 5 beyond it."""
 _CROP_LOW = (-3, -6, -6)
 
-DEFAULT_CRITIC = Path(__file__).resolve().parent.parent / "weights" / "critic.npz"
+DEFAULT_CRITIC = Path(__file__).resolve().parent.parent / "weights" / "critic.onnx"
 """The critic shipped with the package (``docs/critic.md``)."""
 
 N_SCALARS = 12
+_N_FEATURES = 2 * int(np.prod(CROP_SHAPE)) + N_SCALARS
 
 
 def _lattice() -> F64:
@@ -224,68 +227,51 @@ MODELS = ("linear", "cnn")
 """The critic's model kinds (module docstring)."""
 
 
+def _unit(name: str, value: float) -> float:
+    v = float(value)
+    if not 0.0 <= v <= 1.0:
+        raise ValueError(f"{name} must be in [0, 1], got {value}")
+    return v
+
+
 @dataclass
 class GraspCritic:
-    """Standardise → PCA of the crops → logistic regression, or standardise → the
-    network of :mod:`~heapgrasp.planning.critic_net` (module docstring)."""
+    """A critic model (:data:`MODELS`) as an ONNX network from feature rows
+    (:func:`candidate_features`) to logits, with the thresholds it is used with (module
+    docstring). Built by :meth:`fit` or :meth:`load`."""
 
-    mean: F64
-    scale: F64
-    components: F64
-    """``(k, crop features)`` principal axes of the standardised crops (``k = 0`` with a
-    network)."""
-    weights: F64
-    """``k + N_SCALARS + 1`` logistic weights, bias last (unused with a network)."""
+    network: OnnxNetwork
+    """The model, standardisation included: ``features`` ``(B, F)`` → ``logits``."""
     threshold: float = 0.7
     """Candidates below this probability are dropped (:meth:`rescore`): the critic's ε."""
     candidate_epsilon: float = 0.2
     """Threshold ε on the analytic planner's score for the candidates the critic sees
     (the data's, :class:`~heapgrasp.data.critic.CriticDataConfig`)."""
     metadata: dict[str, Any] = field(default_factory=dict)
-    net: ConvCritic | None = None
-    """The convolutional model; None for the linear one."""
+    """What made it (command, data, cross-validation, ...): the file's provenance."""
 
     @property
     def model(self) -> str:
         """``"linear"`` or ``"cnn"``."""
-        return "linear" if self.net is None else "cnn"
+        return str(self.network.hparams["model"])
 
     def __post_init__(self) -> None:
-        n = len(self.mean)
-        n_crop = n - N_SCALARS
-        k = self.components.shape[0]
-        if (
-            self.scale.shape != (n,)
-            or self.components.shape != (k, n_crop)
-            or self.weights.shape != (k + N_SCALARS + 1,)
-            or n_crop != 2 * int(np.prod(CROP_SHAPE))
-        ):
-            raise ValueError(
-                "critic arrays do not fit together: "
-                f"mean {self.mean.shape}, scale {self.scale.shape}, "
-                f"components {self.components.shape}, weights {self.weights.shape}"
-            )
-        for name in ("threshold", "candidate_epsilon"):
-            value = getattr(self, name)
-            if not 0.0 <= value <= 1.0:
-                raise ValueError(f"{name} must be in [0, 1], got {value}")
+        if not isinstance(self.network, OnnxNetwork) or self.network.kind != "grasp-critic":
+            raise ValueError(f"network must be a grasp-critic OnnxNetwork, got {self.network!r}")
+        self.threshold = _unit("threshold", self.threshold)
+        self.candidate_epsilon = _unit("candidate_epsilon", self.candidate_epsilon)
 
     # ------------------------------------------------------------------ model
-    def _design(self, features: F64) -> F64:
-        z = (features - self.mean) / self.scale
-        n_crop = self.components.shape[1]
-        return np.hstack([z[:, :n_crop] @ self.components.T, z[:, n_crop:]])
-
     def probability(self, features: npt.ArrayLike) -> F64:
         """``P(success)`` of each row of ``features`` (:func:`candidate_features`)."""
         f = np.atleast_2d(np.asarray(features, dtype=np.float64))
-        if f.shape[1] != len(self.mean):
-            raise ValueError(f"features must have {len(self.mean)} columns, got {f.shape[1]}")
-        if self.net is not None:
-            logit = self.net.logits((f - self.mean) / self.scale)
-        else:
-            logit = self._design(f) @ self.weights[:-1] + self.weights[-1]
-        return np.asarray(1.0 / (1.0 + np.exp(-np.clip(logit, -30, 30))))
+        if f.ndim != 2 or f.shape[1] != _N_FEATURES:
+            raise ValueError(f"features must have {_N_FEATURES} columns, got shape {f.shape}")
+        if len(f) == 0:
+            return np.zeros(0)
+        (logit,) = self.network.run(f.astype(np.float32))
+        z = np.clip(logit.astype(np.float64), -30, 30)
+        return np.asarray(1.0 / (1.0 + np.exp(-z)))
 
     @classmethod
     def fit(
@@ -305,7 +291,10 @@ class GraspCritic:
         """Fits the model on rows of :func:`candidate_features` and 0/1 labels:
         ``linear`` uses ``components`` and ``l2``; ``cnn`` uses ``epochs``,
         ``weight_decay`` and ``seed`` (:func:`~heapgrasp.planning.critic_net.fit_conv`,
-        needs PyTorch)."""
+        needs PyTorch). Building the model's graph needs the ``onnx`` package
+        (``heapgrasp[train]``)."""
+        from heapgrasp.planning.critic_net import critic_onnx, fit_conv
+
         if model not in MODELS:
             raise ValueError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
         f = np.asarray(features, dtype=np.float64)
@@ -314,19 +303,23 @@ class GraspCritic:
         scale[scale < 1e-6] = 1.0
         z = (f - mean) / scale
         n_crop = f.shape[1] - N_SCALARS
+        hparams = {
+            "threshold": _unit("threshold", threshold),
+            "candidate_epsilon": _unit("candidate_epsilon", candidate_epsilon),
+        }
         if model == "cnn":
-            from heapgrasp.planning.critic_net import fit_conv
-
             net = fit_conv(z, labels, epochs=epochs, weight_decay=weight_decay, seed=seed)
-            empty = np.zeros((0, n_crop))
-            return cls(
-                mean, scale, empty, np.zeros(N_SCALARS + 1), threshold, candidate_epsilon, net=net
+            data = critic_onnx(mean, scale, net=net, hparams=hparams, provenance={})
+        else:
+            _, _, vt = np.linalg.svd(z[:, :n_crop], full_matrices=False)
+            comps = vt[: min(components, len(vt))]
+            design = np.hstack([z[:, :n_crop] @ comps.T, z[:, n_crop:]])
+            w = fit_logistic(design, labels, l2=l2)
+            data = critic_onnx(
+                mean, scale, components=comps, weights=w, hparams=hparams, provenance={}
             )
-        _, _, vt = np.linalg.svd(z[:, :n_crop], full_matrices=False)
-        comps = vt[: min(components, len(vt))]
-        design = np.hstack([z[:, :n_crop] @ comps.T, z[:, n_crop:]])
-        w = fit_logistic(design, labels, l2=l2)
-        return cls(mean, scale, comps, w, threshold, candidate_epsilon)
+        network = OnnxNetwork.from_bytes(data, kind="grasp-critic", name=f"<fitted {model} critic>")
+        return cls(network, threshold, candidate_epsilon)
 
     # ------------------------------------------------------------------ use
     def score_candidates(
@@ -372,69 +365,62 @@ class GraspCritic:
         return sorted(kept, key=lambda c: -c.score)
 
     # ------------------------------------------------------------------ files
-    def save(self, path: Path, *, command: str, metadata: dict[str, Any] | None = None) -> None:
-        """Writes the critic as ``.npz`` (arrays + JSON metadata with ``command``)."""
+    def save(
+        self, path: str | os.PathLike[str], *, command: str, metadata: dict[str, Any] | None = None
+    ) -> Path:
+        """Writes the critic as an ONNX file (atomically), its provenance this critic's
+        :attr:`metadata` updated with ``metadata``, ``command`` and the time. Needs the
+        ``onnx`` package (``heapgrasp[train]``)."""
+        from heapgrasp.planning.critic_net import with_metadata, write_atomically
+
         meta = dict(self.metadata)
         meta.update(metadata or {})
         meta.update(
             command=command,
             created=_dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-            crop_shape=list(CROP_SHAPE),
-            model=self.model,
         )
-        path.parent.mkdir(parents=True, exist_ok=True)
-        net: dict[str, Any] = (
-            {} if self.net is None else {f"net_{k}": v for k, v in self.net.arrays().items()}
-        )
-        np.savez_compressed(
-            path,
-            format=np.str_(CRITIC_FORMAT),
-            version=np.int64(1 if self.net is None else 2),
-            **net,
-            mean=self.mean,
-            scale=self.scale,
-            components=self.components.astype(np.float32),
-            weights=self.weights,
-            threshold=np.float64(self.threshold),
-            candidate_epsilon=np.float64(self.candidate_epsilon),
-            metadata=np.str_(json.dumps(meta)),
-        )
+        hparams = dict(self.network.hparams)
+        hparams.update(threshold=self.threshold, candidate_epsilon=self.candidate_epsilon)
+        data = with_metadata(self.network.model_bytes, hparams, meta)
+        return write_atomically(data, path)
 
     @classmethod
-    def load(cls, path: Path | str) -> GraspCritic:
-        """Reads a critic written by :meth:`save`, checked whole (:func:`read_critic_arrays`):
-        a missing file raises :class:`FileNotFoundError`, any other bad file a
-        :class:`~heapgrasp.geometry.errors.WeightsError` naming the file and the problem."""
-        p = Path(path)
-        arrays, meta = read_critic_arrays(p)
-        net = None
-        if int(arrays["version"]) == 2:
-            from heapgrasp.planning.critic_net import ARRAYS, ConvCritic
+    def load(cls, path: str | os.PathLike[str], *, device: str = "cpu") -> GraspCritic:
+        """Reads a critic file (ONNX, ``kind`` ``grasp-critic``), checked whole: a missing
+        file raises :class:`FileNotFoundError`, any other bad file a
+        :class:`~heapgrasp.geometry.errors.WeightsError` naming the file and the problem
+        (:class:`~heapgrasp.inference.OnnxNetwork`; and a model, crop shape, feature
+        count, threshold or ε other than this heapgrasp's)."""
+        network = OnnxNetwork(path, kind="grasp-critic", device=device)
+        p, hp = network.path, network.hparams
+        for key, want in (
+            ("model", None),
+            ("crop_shape", list(CROP_SHAPE)),
+            ("n_features", _N_FEATURES),
+        ):
+            if key not in hp:
+                raise WeightsError(p, f"hparams field {key!r} missing")
+            if want is not None and hp[key] != want:
+                raise WeightsError(p, f"hparams field {key!r} is {hp[key]!r}, expected {want!r}")
+        if hp["model"] not in MODELS:
+            raise WeightsError(p, f"hparams field 'model' is {hp['model']!r}, not one of {MODELS}")
+        values = {}
+        for key in ("threshold", "candidate_epsilon"):
+            value = hp.get(key)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise WeightsError(p, f"hparams field {key!r} is {value!r}, not a number")
+            if not 0.0 <= value <= 1.0:
+                raise WeightsError(
+                    p, f"hparams field {key!r} is {value}, expected a number in [0, 1]"
+                )
+            values[key] = float(value)
+        return cls(network, values["threshold"], values["candidate_epsilon"], network.provenance)
 
-            try:
-                net = ConvCritic(*(arrays[f"net_{k}"].astype(np.float64) for k in ARRAYS))
-            except ValueError as exc:  # pragma: no cover - read_critic_arrays checks shapes
-                raise WeightsError(p, str(exc)) from exc
-        try:
-            return cls(
-                arrays["mean"].astype(np.float64),
-                arrays["scale"].astype(np.float64),
-                arrays["components"].astype(np.float64),
-                arrays["weights"].astype(np.float64),
-                float(arrays["threshold"]),
-                float(arrays["candidate_epsilon"]),
-                meta,
-                net,
-            )
-        except ValueError as exc:  # pragma: no cover - read_critic_arrays checks these
-            raise WeightsError(p, str(exc)) from exc
 
-
-# --------------------------------------------------------------------------- file checks
+# --------------------------------------------------------------------------- former files
 
 CRITIC_FORMAT = "heapgrasp-critic"
-"""``format`` entry of a critic file."""
-_N_FEATURES = 2 * int(np.prod(CROP_SHAPE)) + N_SCALARS
+"""``format`` entry of a former ``.npz`` critic file."""
 
 
 def _describe(a: npt.NDArray[Any]) -> str:
@@ -501,8 +487,11 @@ def _scalar(p: Path, arrays: dict[str, npt.NDArray[Any]], name: str, kinds: str)
     return a.item()
 
 
-def read_critic_arrays(path: Path | str) -> tuple[dict[str, npt.NDArray[Any]], dict[str, Any]]:
-    """The arrays and the metadata of the critic file ``path``, checked whole: the file
+def read_critic_arrays(
+    path: str | os.PathLike[str],
+) -> tuple[dict[str, npt.NDArray[Any]], dict[str, Any]]:
+    """The arrays and the metadata of the former ``.npz`` critic file ``path`` (the input
+    of :func:`~heapgrasp.planning.critic_net.convert_npz`), checked whole: the file
     (:class:`FileNotFoundError` if missing), ``format`` and ``version``, every array's
     presence, dtype (floating point), shape and finite values, the scale of each feature
     (> 0: features are divided by it), ``threshold`` and ``candidate_epsilon`` in [0, 1],

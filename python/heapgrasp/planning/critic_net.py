@@ -1,73 +1,78 @@
-"""A small 3-D convolutional grasp critic: the two crops of
-:func:`~heapgrasp.planning.critic.candidate_features` read by two 3-D convolutions, then
-with the scalar features by a hidden layer (the paper's answer to grasp quality is a 3-D
-CNN on the occupancy grid, §IV-B; this one reads the grid only around a candidate).
+"""The grasp critic's models as ONNX graphs, and the small 3-D convolutional critic's
+training: the two crops of :func:`~heapgrasp.planning.critic.candidate_features` read by
+two 3-D convolutions, then with the scalar features by a hidden layer (the paper's
+answer to grasp quality is a 3-D CNN on the occupancy grid, §IV-B; this one reads the
+grid only around a candidate).
 
-Layers (the input standardised as the linear critic's is):
+Layers of the ``cnn`` model (the input standardised as the linear critic's is):
 
 1. the crops as 2 channels of :data:`~heapgrasp.planning.critic.CROP_SHAPE` voxels;
 2. 3³ convolution (padding 1) to ``c1`` channels, ReLU, 2³ max pooling;
-3. 3³ convolution (padding 1) to ``c2`` channels, ReLU, adaptive average pooling to 2³;
+3. 3³ convolution (padding 1) to ``c2`` channels, ReLU, adaptive average pooling to 2³
+   (on the 3 × 6 × 6 map: windows 2 × 3 × 3, strides 1 × 3 × 3, PyTorch's bins);
 4. with the :data:`~heapgrasp.planning.critic.N_SCALARS` scalars, a ``hidden``-unit
    layer, ReLU (dropout 0.3 in training), and one logit.
 
-Training needs PyTorch (``pip install heapgrasp[nets]``); :meth:`ConvCritic.logits` is
-plain numpy, so running a trained critic needs nothing beyond the base install.
+Every critic file is an ONNX graph from the raw feature rows to the logits, the
+standardisation included (:func:`critic_onnx`), run with onnxruntime like every shipped
+network (:class:`heapgrasp.inference.OnnxNetwork`). Building one needs the ``onnx``
+package and training the ``cnn`` model PyTorch (``pip install heapgrasp[train]``);
+running one needs neither. :func:`convert_npz` turns a critic of the former ``.npz``
+format into ONNX.
 """
 
 from __future__ import annotations
 
+import datetime as _dt
+import json
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-from numpy.lib.stride_tricks import sliding_window_view
 
-from heapgrasp.planning.critic import CROP_SHAPE, N_SCALARS
+from heapgrasp.inference import (
+    FORMAT_VERSION,
+    META_HPARAMS,
+    META_KIND,
+    META_PROVENANCE,
+    META_VERSION,
+    seal,
+)
+from heapgrasp.planning.critic import CROP_SHAPE, N_SCALARS, read_critic_arrays
 
-__all__ = ["ARRAYS", "ConvCritic", "fit_conv"]
+if TYPE_CHECKING:
+    import onnx
+
+__all__ = [
+    "ARRAYS",
+    "OPSET",
+    "ConvCritic",
+    "convert_npz",
+    "critic_onnx",
+    "fit_conv",
+    "with_metadata",
+]
 
 F64 = npt.NDArray[np.float64]
 
 ARRAYS = ("conv1_w", "conv1_b", "conv2_w", "conv2_b", "fc1_w", "fc1_b", "fc2_w", "fc2_b")
 """The network's arrays, in the order of :class:`ConvCritic`'s fields."""
 
+#: ONNX opset of critic files.
+OPSET = 17
+
 _N_CROP = 2 * int(np.prod(CROP_SHAPE))
-
-
-def _conv3d(x: F64, w: F64, b: F64) -> F64:
-    """3³ cross-correlation with padding 1 (as ``torch.nn.Conv3d(padding=1)``)."""
-    xp = np.pad(x, ((0, 0), (0, 0), (1, 1), (1, 1), (1, 1)))
-    win = sliding_window_view(xp, (3, 3, 3), axis=(2, 3, 4))
-    out = np.einsum("ncdhwijk,ocijk->nodhw", win, w, optimize=True)
-    return np.asarray(out + b[None, :, None, None, None], dtype=np.float64)
-
-
-def _max_pool2(x: F64) -> F64:
-    n, c, d, h, w = x.shape
-    x = x[:, :, : d // 2 * 2, : h // 2 * 2, : w // 2 * 2]
-    return np.asarray(x.reshape(n, c, d // 2, 2, h // 2, 2, w // 2, 2).max(axis=(3, 5, 7)))
-
-
-def _adaptive_avg2(x: F64) -> F64:
-    """Adaptive average pooling to 2³ with PyTorch's bins (``floor(i·L/2)`` to
-    ``ceil((i+1)·L/2)``)."""
-
-    def bins(length: int) -> list[slice]:
-        return [slice((i * length) // 2, -(-((i + 1) * length) // 2)) for i in range(2)]
-
-    n, c = x.shape[:2]
-    out = np.empty((n, c, 2, 2, 2))
-    for i, si in enumerate(bins(x.shape[2])):
-        for j, sj in enumerate(bins(x.shape[3])):
-            for k, sk in enumerate(bins(x.shape[4])):
-                out[:, :, i, j, k] = x[:, :, si, sj, sk].mean(axis=(2, 3, 4))
-    return out
+_N_FEATURES = _N_CROP + N_SCALARS
 
 
 @dataclass
 class ConvCritic:
-    """The network's weights (numpy, PyTorch's layouts); :meth:`logits` runs it."""
+    """The ``cnn`` model's weights (numpy, PyTorch's layouts), checked to fit together;
+    :func:`critic_onnx` makes them a graph that runs."""
 
     conv1_w: F64
     conv1_b: F64
@@ -92,23 +97,233 @@ class ConvCritic:
             if got != shape:
                 raise ValueError(f"critic network: {name} must have shape {shape}, got {got}")
 
-    def logits(self, z: npt.ArrayLike) -> F64:
-        """Logits of standardised feature rows ``z`` (``(n, crops + scalars)``)."""
-        x = np.atleast_2d(np.asarray(z, dtype=np.float64))
-        if x.shape[1] != _N_CROP + N_SCALARS:
-            raise ValueError(f"features must have {_N_CROP + N_SCALARS} columns, got {x.shape[1]}")
-        crops = x[:, :_N_CROP].reshape(-1, 2, *CROP_SHAPE)
-        h = np.maximum(_conv3d(crops, self.conv1_w, self.conv1_b), 0.0)
-        h = _max_pool2(h)
-        h = np.maximum(_conv3d(h, self.conv2_w, self.conv2_b), 0.0)
-        h = _adaptive_avg2(h).reshape(len(x), -1)
-        h = np.hstack([h, x[:, _N_CROP:]])
-        h = np.maximum(h @ self.fc1_w.T + self.fc1_b, 0.0)
-        return np.asarray((h @ self.fc2_w.T + self.fc2_b)[:, 0])
-
     def arrays(self) -> dict[str, F64]:
         """The weights by name (:data:`ARRAYS`)."""
         return {name: getattr(self, name) for name in ARRAYS}
+
+    def hparams(self) -> dict[str, int]:
+        """Channels of the two convolutions and width of the hidden layer."""
+        return {"c1": len(self.conv1_b), "c2": len(self.conv2_b), "hidden": len(self.fc1_b)}
+
+
+def _onnx() -> Any:
+    try:
+        import onnx
+    except ImportError as exc:  # pragma: no cover - depends on the install
+        raise ImportError(
+            "building a grasp critic (training, conversion) needs the onnx package: "
+            "pip install 'heapgrasp[train]'"
+        ) from exc
+    return onnx
+
+
+def critic_onnx(
+    mean: npt.ArrayLike,
+    scale: npt.ArrayLike,
+    *,
+    net: ConvCritic | None = None,
+    components: npt.ArrayLike | None = None,
+    weights: npt.ArrayLike | None = None,
+    hparams: Mapping[str, Any],
+    provenance: Mapping[str, Any],
+) -> bytes:
+    """A critic as a serialised ONNX model: ``features`` ``(B, F)`` float32 →
+    standardise with ``mean`` and ``scale`` → the model → ``logits`` ``(B,)``.
+
+    The model is ``net`` (``cnn``) or, without it, PCA ``components`` ``(k, crop
+    features)`` and logistic ``weights`` (``k + N_SCALARS + 1``, bias last: ``linear``).
+    ``hparams`` (``model``, ``threshold``, ``candidate_epsilon``, ...) and
+    ``provenance`` are stored as the file's metadata with ``crop_shape`` and
+    ``n_features`` added. Needs the ``onnx`` package."""
+    onnx = _onnx()
+    from onnx import TensorProto, helper, numpy_helper
+
+    m = np.asarray(mean, dtype=np.float64)
+    s = np.asarray(scale, dtype=np.float64)
+    if m.shape != (_N_FEATURES,) or s.shape != (_N_FEATURES,):
+        raise ValueError(
+            f"mean and scale must have shape ({_N_FEATURES},), got {m.shape} and {s.shape}"
+        )
+    if not (np.isfinite(m).all() and np.isfinite(s).all() and (s > 0).all()):
+        raise ValueError("mean and scale must be finite, and scale > 0")
+
+    def const(name: str, value: npt.ArrayLike, dtype: type = np.float32) -> Any:
+        return numpy_helper.from_array(np.ascontiguousarray(value, dtype=dtype), name)
+
+    inits = [
+        const("mean", m),
+        const("scale", s),
+        const("crop_start", [0], np.int64),
+        const("crop_end", [_N_CROP], np.int64),
+        const("scalar_end", [_N_FEATURES], np.int64),
+        const("axis1", [1], np.int64),
+    ]
+    nodes = [
+        helper.make_node("Sub", ["features", "mean"], ["centred"]),
+        helper.make_node("Div", ["centred", "scale"], ["z"]),
+        helper.make_node("Slice", ["z", "crop_start", "crop_end", "axis1"], ["z_crops"]),
+        helper.make_node("Slice", ["z", "crop_end", "scalar_end", "axis1"], ["z_scalars"]),
+    ]
+    hp = dict(hparams)
+    if net is not None:
+        model = "cnn"
+        inits += [const(k, v) for k, v in net.arrays().items()]
+        inits.append(const("crop_shape", [-1, 2, *CROP_SHAPE], np.int64))
+        pool = _avg_pool_to_2([n // 2 for n in CROP_SHAPE])
+        nodes += [
+            helper.make_node("Reshape", ["z_crops", "crop_shape"], ["crops"]),
+            helper.make_node(
+                "Conv",
+                ["crops", "conv1_w", "conv1_b"],
+                ["h1"],
+                kernel_shape=[3, 3, 3],
+                pads=[1] * 6,
+            ),
+            helper.make_node("Relu", ["h1"], ["r1"]),
+            helper.make_node("MaxPool", ["r1"], ["p1"], kernel_shape=[2, 2, 2], strides=[2, 2, 2]),
+            helper.make_node(
+                "Conv", ["p1", "conv2_w", "conv2_b"], ["h2"], kernel_shape=[3, 3, 3], pads=[1] * 6
+            ),
+            helper.make_node("Relu", ["h2"], ["r2"]),
+            helper.make_node(
+                "AveragePool",
+                ["r2"],
+                ["p2"],
+                kernel_shape=pool["kernel_shape"],
+                strides=pool["strides"],
+            ),
+            helper.make_node("Flatten", ["p2"], ["f2"], axis=1),
+            helper.make_node("Concat", ["f2", "z_scalars"], ["hidden_in"], axis=1),
+            helper.make_node("Gemm", ["hidden_in", "fc1_w", "fc1_b"], ["g1"], transB=1),
+            helper.make_node("Relu", ["g1"], ["hidden"]),
+            helper.make_node("Gemm", ["hidden", "fc2_w", "fc2_b"], ["g2"], transB=1),
+            helper.make_node("Squeeze", ["g2", "axis1"], ["logits"]),
+        ]
+        hp.update(net.hparams())
+    else:
+        if components is None or weights is None:
+            raise ValueError("a linear critic needs components and weights (or pass net)")
+        c = np.asarray(components, dtype=np.float64)
+        w = np.asarray(weights, dtype=np.float64)
+        k = c.shape[0] if c.ndim == 2 else -1
+        if c.shape != (k, _N_CROP) or w.shape != (k + N_SCALARS + 1,) or k < 1:
+            raise ValueError(
+                f"critic arrays do not fit together: components {c.shape}, weights {w.shape} "
+                f"(expected (k >= 1, {_N_CROP}) and (k + {N_SCALARS + 1},))"
+            )
+        model = "linear"
+        inits += [const("components_t", c.T), const("w", w[:-1]), const("b", w[-1:])]
+        nodes += [
+            helper.make_node("MatMul", ["z_crops", "components_t"], ["projected"]),
+            helper.make_node("Concat", ["projected", "z_scalars"], ["design"], axis=1),
+            helper.make_node("MatMul", ["design", "w"], ["wx"]),
+            helper.make_node("Add", ["wx", "b"], ["logits"]),
+        ]
+        hp["components"] = k
+    hp.update(model=model, crop_shape=list(CROP_SHAPE), n_features=_N_FEATURES)
+    graph = helper.make_graph(
+        nodes,
+        f"heapgrasp-grasp-critic-{model}",
+        [helper.make_tensor_value_info("features", TensorProto.FLOAT, ["batch", _N_FEATURES])],
+        [helper.make_tensor_value_info("logits", TensorProto.FLOAT, ["batch"])],
+        inits,
+    )
+    proto = helper.make_model(
+        graph, opset_imports=[helper.make_opsetid("", OPSET)], producer_name="heapgrasp"
+    )
+    _set_metadata(proto, hp, provenance)
+    onnx.checker.check_model(proto, full_check=True)
+    return seal(proto.SerializeToString())
+
+
+def _avg_pool_to_2(sizes: list[int]) -> dict[str, list[int]]:
+    """``AveragePool`` attributes giving PyTorch's adaptive average pooling to 2 per axis
+    (bins ``floor(i·L/2)`` to ``ceil((i+1)·L/2)``): equal windows, so ``L`` must be even
+    or 3."""
+    kernels, strides = [], []
+    for n in sizes:
+        if n % 2 == 0:
+            kernels.append(n // 2)
+            strides.append(n // 2)
+        elif n == 3:  # bins [0, 2) and [1, 3)
+            kernels.append(2)
+            strides.append(1)
+        else:  # pragma: no cover - CROP_SHAPE fixes the sizes
+            raise ValueError(f"adaptive pooling of {n} to 2 has unequal bins")
+    return {"kernel_shape": kernels, "strides": strides}
+
+
+def _set_metadata(
+    proto: onnx.ModelProto, hparams: Mapping[str, Any], provenance: Mapping[str, Any]
+) -> None:
+    meta = {
+        META_KIND: "grasp-critic",
+        META_VERSION: str(FORMAT_VERSION),
+        META_HPARAMS: json.dumps(dict(hparams), sort_keys=True, allow_nan=False),
+        META_PROVENANCE: json.dumps(dict(provenance), sort_keys=True, allow_nan=False),
+    }
+    del proto.metadata_props[:]
+    for key, value in meta.items():
+        entry = proto.metadata_props.add()
+        entry.key, entry.value = key, value
+
+
+def with_metadata(
+    model_bytes: bytes, hparams: Mapping[str, Any], provenance: Mapping[str, Any]
+) -> bytes:
+    """The serialised critic ``model_bytes`` with its metadata replaced."""
+    onnx = _onnx()
+    proto = onnx.load_model_from_string(model_bytes)
+    _set_metadata(proto, hparams, provenance)
+    return seal(proto.SerializeToString())
+
+
+def write_atomically(data: bytes, path: str | os.PathLike[str]) -> Path:
+    """Writes ``data`` to ``path`` through a temporary file and a rename."""
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, out)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return out
+
+
+def convert_npz(
+    src: str | os.PathLike[str], dst: str | os.PathLike[str], *, command: str = ""
+) -> Path:
+    """Converts a critic of the former ``.npz`` format (read and checked whole by
+    :func:`~heapgrasp.planning.critic.read_critic_arrays`) to an ONNX critic file at
+    ``dst``: the same model, standardisation, threshold and ε, its metadata kept as the
+    provenance with the conversion noted."""
+    arrays, meta = read_critic_arrays(src)
+    hparams = {
+        "threshold": float(arrays["threshold"]),
+        "candidate_epsilon": float(arrays["candidate_epsilon"]),
+    }
+    provenance = {
+        **meta,
+        "converted": {
+            "from": Path(src).name,
+            "command": command,
+            "created": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        },
+    }
+    net = None
+    if int(arrays["version"]) == 2:
+        net = ConvCritic(*(arrays[f"net_{k}"].astype(np.float64) for k in ARRAYS))
+    data = critic_onnx(
+        arrays["mean"],
+        arrays["scale"],
+        net=net,
+        components=None if net is not None else arrays["components"],
+        weights=None if net is not None else arrays["weights"],
+        hparams=hparams,
+        provenance=provenance,
+    )
+    return write_atomically(data, dst)
 
 
 def _torch_module(c1: int, c2: int, hidden: int):  # type: ignore[no-untyped-def]
@@ -151,7 +366,7 @@ def fit_conv(
         import torch
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise ImportError(
-            "training the convolutional critic needs PyTorch: pip install 'heapgrasp[nets]'"
+            "training the convolutional critic needs PyTorch: pip install 'heapgrasp[train]'"
         ) from exc
     x = np.asarray(z, dtype=np.float32)
     y = np.asarray(labels, dtype=np.float32)

@@ -1,28 +1,23 @@
-"""The learned grasp planner of HEAPGrasp §IV-B (eq. 11): a VGN-style
-:class:`heapgrasp.nets.GraspNet` run on the high-confidence occupancy grid ``Ŝ≥λ``
-(or on a TSDF for the VGN baseline, ``input_kind = "tsdf"``).
+"""The learned grasp planner of HEAPGrasp §IV-B (eq. 11): a VGN-style grasp network
+(:class:`heapgrasp.nets.GraspNet`, exported to ONNX) run on the high-confidence occupancy
+grid ``Ŝ≥λ`` (or on a TSDF for the VGN baseline, ``input_kind = "tsdf"``).
 
-PyTorch is imported when a planner is built, not when this module is imported; without
-it, building one raises :class:`ImportError` asking to install ``heapgrasp[nets]``.
+The network runs from its ONNX file with onnxruntime (:mod:`heapgrasp.inference`);
+PyTorch is never imported.
 """
 
 from __future__ import annotations
 
-import importlib
 import os
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
+from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.geometry.grid import GridFrame
+from heapgrasp.inference import OnnxNetwork
 from heapgrasp.planning.volumes import GraspVolumes
-
-if TYPE_CHECKING:
-    import torch
-
-    from heapgrasp.nets.models import GraspNet
 
 __all__ = ["NetworkGraspPlanner", "validate_grid"]
 
@@ -45,16 +40,16 @@ def validate_grid(grid: object, resolution: int, what: str = "grid") -> F32:
 
 
 class NetworkGraspPlanner:
-    """:class:`heapgrasp.planning.volumes.GraspPlanner` backed by a :class:`GraspNet`.
+    """:class:`heapgrasp.planning.volumes.GraspPlanner` backed by the grasp network.
 
     Parameters
     ----------
-    net_or_path : GraspNet or path-like
-        A network (moved to ``device`` and put in eval mode) or a weights file
-        (:func:`heapgrasp.nets.load_grasp_net`, which checks it whole: a bad file raises
-        :class:`~heapgrasp.geometry.errors.WeightsError` naming it and the problem).
-    device : str or torch.device
-        Where the network runs (``"cpu"``, ``"cuda"``, ...).
+    path : path-like
+        The network's ONNX file (``kind`` ``grasp-network``), checked whole when the
+        planner is built: a missing file raises :class:`FileNotFoundError`, a bad one a
+        :class:`~heapgrasp.geometry.errors.WeightsError` naming it and the problem.
+    device : str
+        ``cpu``, ``cuda``, ``cuda:N`` or ``auto`` (:func:`heapgrasp.inference.resolve_device`).
 
     Notes
     -----
@@ -65,36 +60,33 @@ class NetworkGraspPlanner:
 
     name = "vgn-net"
 
-    def __init__(
-        self,
-        net_or_path: GraspNet | str | os.PathLike[str],
-        device: str | torch.device = "cpu",
-    ) -> None:
-        # heapgrasp.nets first: without PyTorch it raises the "install heapgrasp[nets]" hint.
-        importlib.import_module("heapgrasp.nets")
-        import torch
-
-        from heapgrasp.nets.models import GraspNet
-        from heapgrasp.nets.weights import load_grasp_net
-
-        self.device = torch.device(device)
-        if isinstance(net_or_path, GraspNet):
-            net = net_or_path.to(self.device).eval()
-        elif isinstance(net_or_path, str | os.PathLike):
-            net = load_grasp_net(net_or_path, self.device)
-        else:
+    def __init__(self, path: str | os.PathLike[str], device: str = "cpu") -> None:
+        if not isinstance(path, str | os.PathLike):
             raise TypeError(
-                f"net_or_path must be a GraspNet or a weights path, got "
-                f"{type(net_or_path).__name__}"
+                f"path must be the grasp network's ONNX file, got {type(path).__name__} "
+                f"(export a GraspNet with heapgrasp.nets.export_onnx)"
             )
-        self.net: GraspNet = net
+        self.network = OnnxNetwork(path, kind="grasp-network", device=device)
+        if self.network.input.shape[1] != 1:
+            raise WeightsError(
+                self.network.path,
+                f"the grasp network reads {self.network.input.shape[1]} channels; "
+                f"heapgrasp feeds 1 (the grid)",
+            )
         self.input_kind: str = "occupancy"
         """``"occupancy"`` (``Ŝ≥λ``, HEAPGrasp) or ``"tsdf"`` (the VGN baseline)."""
 
     @property
+    def device(self) -> str:
+        """Where the network runs (``cpu`` or ``cuda[:N]``)."""
+        return self.network.device
+
+    @property
     def resolution(self) -> int:
         """Grid side ``R`` the network reads."""
-        return self.net.resolution
+        r = self.network.input.shape[2]
+        assert r is not None
+        return r
 
     def _check_frame(self, frame: GridFrame) -> None:
         if not isinstance(frame, GridFrame):
@@ -132,21 +124,14 @@ class NetworkGraspPlanner:
         return self._run(grids, frames)
 
     def _run(self, grids: F32, frames: Sequence[GridFrame]) -> list[GraspVolumes]:
-        import torch
-
-        with torch.inference_mode():
-            # A copy: the caller's array may be read-only (from_numpy would warn).
-            x = torch.tensor(grids, device=self.device)
-            quality, rotation, width = self.net(x[:, None])
-            q = quality[:, 0].cpu().numpy()
-            rot = rotation.permute(0, 2, 3, 4, 1).cpu().numpy()
-            w = width[:, 0].cpu().numpy()
+        quality, rotation, width = self.network.run(grids[:, None])
+        rot = rotation.transpose(0, 2, 3, 4, 1)
         return [
             GraspVolumes(
                 frame=f,
-                quality=np.ascontiguousarray(q[i], dtype=np.float32),
+                quality=np.ascontiguousarray(quality[i, 0], dtype=np.float32),
                 quaternions=np.ascontiguousarray(rot[i], dtype=np.float32),
-                widths=np.ascontiguousarray(w[i], dtype=np.float32),
+                widths=np.ascontiguousarray(width[i, 0], dtype=np.float32),
             )
             for i, f in enumerate(frames)
         ]

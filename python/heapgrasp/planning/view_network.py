@@ -1,85 +1,136 @@
-"""The learned view scorer of HEAPGrasp §IV-B (eq. 13): a :class:`heapgrasp.nets.ViewNet`
-maps the occupancy grid ``Ŝ_{0-1}`` (eq. 10) to the ``U × V`` view scores, its estimate of
-the exact eq. 14 score that :class:`heapgrasp.planning.views.OracleViewScorer` computes from the
-true meshes (the network's training labels, Algorithm 1).
+"""The learned view scorer of HEAPGrasp §IV-B (eq. 13): the view network maps the
+occupancy grid ``Ŝ_{0-1}`` (eq. 10) to the ``U × V`` view scores, its estimate of the
+exact eq. 14 score that :class:`heapgrasp.planning.views.OracleViewScorer` computes from
+the true meshes (the network's training labels, Algorithm 1).
 
 Score ``[u, v]`` belongs to the view-waypoint candidate at azimuth ``φ = 2π u / U`` and
 polar angle ``θ = θ_max v / V`` (eq. 12, 0-based indices), the layout of
 :class:`heapgrasp.planning.views.ViewContext.candidates`.
 
-PyTorch is imported when a scorer is built, not when this module is imported; without it,
-building one raises :class:`ImportError` asking to install ``heapgrasp[nets]``.
+The network runs from its ONNX file with onnxruntime (:mod:`heapgrasp.inference`);
+PyTorch is never imported. Its input (:func:`network_input`) has one or two channels:
+
+0. the occupancy ``Ŝ_{0-1}`` (``grid.occupancy()``), the paper's input;
+1. (two-channel networks) the voxels eq. 14 is counted on, 0/1: the target's column
+   (:func:`~heapgrasp.planning.views.target_region`, ``target_radius`` around the target
+   grasp) where the context has a target and ``target_radius > 0``, else every voxel
+   (the paper's eq. 14 over the whole grid), as the oracle counts it.
 """
 
 from __future__ import annotations
 
-import importlib
+import math
 import os
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
+from heapgrasp.geometry.errors import WeightsError
+from heapgrasp.inference import OnnxNetwork
 from heapgrasp.planning.grasp_network import validate_grid
-from heapgrasp.planning.views import ViewContext
+from heapgrasp.planning.views import ViewContext, target_region
 
-if TYPE_CHECKING:
-    import torch
-
-    from heapgrasp.nets.models import ViewNet
-
-__all__ = ["NetworkViewScorer"]
+__all__ = ["NetworkViewScorer", "network_input"]
 
 F32 = npt.NDArray[np.float32]
 
 
-class NetworkViewScorer:
-    """:class:`heapgrasp.planning.views.ViewScorer` backed by a :class:`ViewNet` (eq. 13).
+def network_input(occupancy: npt.ArrayLike, region: npt.ArrayLike | None, in_channels: int) -> F32:
+    """The view network's input for one grid: ``(in_channels, R, R, R)`` float32.
 
     Parameters
     ----------
-    net_or_path : ViewNet or path-like
-        A network (moved to ``device`` and put in eval mode) or a weights file
-        (:func:`heapgrasp.nets.load_view_net`, which checks it whole: a bad file raises
-        :class:`~heapgrasp.geometry.errors.WeightsError` naming it and the problem).
-    device : str or torch.device
-        Where the network runs.
+    occupancy : array_like
+        ``(R, R, R)`` occupancy ``Ŝ_{0-1}`` (eq. 10), indexed ``[x, y, z]``.
+    region : array_like or None
+        ``(R, R, R)`` mask of the voxels eq. 14 is counted on (bool or 0/1), or None for
+        all of them; used by two-channel networks only.
+    in_channels : {1, 2}
+        The network's input channels.
+    """
+    occ = np.asarray(occupancy, dtype=np.float32)
+    if in_channels == 1:
+        return np.ascontiguousarray(occ[None])
+    if in_channels != 2:
+        raise ValueError(f"view networks read 1 or 2 channels, not {in_channels}")
+    mask = np.ones_like(occ) if region is None else np.asarray(region, dtype=np.float32)
+    if mask.shape != occ.shape:
+        raise ValueError(f"region must have the grid's shape {occ.shape}, got {mask.shape}")
+    return np.ascontiguousarray(np.stack([occ, mask]))
+
+
+class NetworkViewScorer:
+    """:class:`heapgrasp.planning.views.ViewScorer` backed by the view network (eq. 13).
+
+    Parameters
+    ----------
+    path : path-like
+        The network's ONNX file (``kind`` ``view-network``), checked whole when the
+        scorer is built: a missing file raises :class:`FileNotFoundError`, a bad one a
+        :class:`~heapgrasp.geometry.errors.WeightsError` naming it and the problem.
+    device : str
+        ``cpu``, ``cuda``, ``cuda:N`` or ``auto`` (:func:`heapgrasp.inference.resolve_device`).
+    target_radius : float
+        Radius (m) of the target's column (module docstring) for two-channel networks;
+        0 counts every voxel. A one-channel network cannot be told a region: it scores
+        the whole grid whatever this is.
     """
 
     name = "view-net"
 
     def __init__(
         self,
-        net_or_path: ViewNet | str | os.PathLike[str],
-        device: str | torch.device = "cpu",
+        path: str | os.PathLike[str],
+        device: str = "cpu",
+        *,
+        target_radius: float = 0.0,
     ) -> None:
-        # heapgrasp.nets first: without PyTorch it raises the "install heapgrasp[nets]" hint.
-        importlib.import_module("heapgrasp.nets")
-        import torch
-
-        from heapgrasp.nets.models import ViewNet
-        from heapgrasp.nets.weights import load_view_net
-
-        self.device = torch.device(device)
-        if isinstance(net_or_path, ViewNet):
-            net = net_or_path.to(self.device).eval()
-        elif isinstance(net_or_path, str | os.PathLike):
-            net = load_view_net(net_or_path, self.device)
-        else:
+        if not isinstance(path, str | os.PathLike):
             raise TypeError(
-                f"net_or_path must be a ViewNet or a weights path, got {type(net_or_path).__name__}"
+                f"path must be the view network's ONNX file, got {type(path).__name__} "
+                f"(export a ViewNet with heapgrasp.nets.export_onnx)"
             )
-        self.net: ViewNet = net
+        if not (isinstance(target_radius, int | float) and math.isfinite(target_radius)):
+            raise ValueError(f"target_radius must be a finite number >= 0, got {target_radius!r}")
+        if target_radius < 0:
+            raise ValueError(f"target_radius must be >= 0, got {target_radius!r}")
+        self.network = OnnxNetwork(path, kind="view-network", device=device)
+        self.target_radius = float(target_radius)
+        channels = self.network.input.shape[1]
+        assert channels is not None
+        if channels not in (1, 2):
+            raise WeightsError(
+                self.network.path,
+                f"the view network reads {channels} channels; heapgrasp feeds 1 (occupancy) "
+                f"or 2 (occupancy, region)",
+            )
+        self.in_channels: int = channels
+
+    @property
+    def device(self) -> str:
+        """Where the network runs (``cpu`` or ``cuda[:N]``)."""
+        return self.network.device
 
     @property
     def resolution(self) -> int:
         """Grid side ``R`` the network reads."""
-        return self.net.resolution
+        r = self.network.input.shape[2]
+        assert r is not None
+        return r
 
     @property
     def view_shape(self) -> tuple[int, int]:
         """``(U, V)`` of the score map."""
-        return self.net.view_shape
+        _, u, v = self.network.outputs[0].shape
+        assert u is not None and v is not None
+        return (u, v)
+
+    def region(self, ctx: ViewContext) -> npt.NDArray[np.bool_] | None:
+        """The voxels eq. 14 is counted on for ``ctx``: the target's column, or None (all)."""
+        if self.target_radius <= 0 or ctx.target is None:
+            return None
+        target = np.asarray(ctx.target, dtype=np.float64)
+        return target_region(ctx.grid, target[:3, 3], self.target_radius)
 
     def scores(self, occupancy: F32 | ViewContext) -> F32:
         """``(U, V)`` float32 view scores in [0, 1] (eq. 13).
@@ -87,12 +138,12 @@ class NetworkViewScorer:
         Parameters
         ----------
         occupancy : ndarray or ViewContext
-            The ``(R, R, R)`` float32 occupancy grid ``Ŝ_{0-1}`` (eq. 10), or a
-            :class:`ViewContext` (its grid's ``occupancy()`` is used, and the map must
-            match the shape of its ``candidates``).
+            A :class:`ViewContext` (its grid's ``occupancy()`` and, for two-channel
+            networks, the region of :meth:`region`; its ``candidates`` must have the
+            map's shape), or the ``(R, R, R)`` float32 occupancy grid ``Ŝ_{0-1}``
+            (eq. 10; a two-channel network then counts every voxel).
         """
-        import torch
-
+        region = None
         if isinstance(occupancy, ViewContext):
             grid = occupancy.grid.occupancy()
             want = tuple(occupancy.candidates.shape[:2])
@@ -101,10 +152,10 @@ class NetworkViewScorer:
                     f"the view network scores {self.view_shape[0]}×{self.view_shape[1]} "
                     f"candidates, the context has {want[0]}×{want[1]}"
                 )
+            if self.in_channels == 2:
+                region = self.region(occupancy)
         else:
             grid = occupancy
         x = validate_grid(grid, self.resolution, "occupancy")
-        with torch.inference_mode():
-            out = self.net(torch.tensor(x, device=self.device)[None, None])
-            scores = out[0].cpu().numpy()
-        return np.ascontiguousarray(scores, dtype=np.float32)
+        (scores,) = self.network.run(network_input(x, region, self.in_channels)[None])
+        return np.ascontiguousarray(scores[0], dtype=np.float32)
