@@ -5,8 +5,10 @@ onnxruntime vs PyTorch").
 Randomly initialised networks of the default size (their speed does not depend on the
 weights), exported with ``heapgrasp.nets.export_onnx``; random 40³ occupancy grids
 (15 % occupied). Each call is one forward pass on a batch of 1, timed alone after
-``--warmup`` calls; the median of ``--calls`` is reported. The runtimes take turns call
-by call, so a machine busy with other work slows both alike. The view network is also
+``--warmup`` calls; the median of ``--calls`` is reported. The runtimes take turns in
+blocks of ``--block`` calls (each block after two untimed calls and a 50 ms pause, so
+one runtime's spinning worker threads have gone idle before the other's run), so a
+machine busy with other work slows both alike. The view network is also
 timed through ``NetworkViewScorer.scores`` (input checks and the NumPy output included),
 which is what a view waypoint costs.
 
@@ -36,17 +38,23 @@ from heapgrasp.nets.export import describe_machine
 from heapgrasp.planning.view_network import NetworkViewScorer
 
 
-def median_ms(runs: dict[str, Callable[[], object]], calls: int, warmup: int) -> dict[str, float]:
-    """Median milliseconds per call of each of ``runs``, called in turn."""
-    for _ in range(warmup):
-        for call in runs.values():
+def median_ms(
+    runs: dict[str, Callable[[], object]], calls: int, warmup: int, block: int
+) -> dict[str, float]:
+    """Median milliseconds per call of each of ``runs``, in turns of ``block`` calls."""
+    for call in runs.values():
+        for _ in range(warmup):
             call()
     times: dict[str, list[float]] = {name: [] for name in runs}
-    for _ in range(calls):
+    while min(len(t) for t in times.values()) < calls:
         for name, call in runs.items():
-            t0 = time.perf_counter()
+            time.sleep(0.05)
             call()
-            times[name].append(time.perf_counter() - t0)
+            call()
+            for _ in range(min(block, calls - len(times[name]))):
+                t0 = time.perf_counter()
+                call()
+                times[name].append(time.perf_counter() - t0)
     return {name: 1e3 * statistics.median(t) for name, t in times.items()}
 
 
@@ -54,6 +62,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--calls", type=int, default=200, help="timed calls (median)")
     parser.add_argument("--warmup", type=int, default=20)
+    parser.add_argument("--block", type=int, default=25, help="calls per turn")
     parser.add_argument("--grasp-calls", type=int, default=50, help="timed grasp-net calls")
     parser.add_argument("--grids", type=int, default=20, help="random grids for the difference")
     parser.add_argument(
@@ -98,7 +107,11 @@ def main() -> None:
                 scorer = NetworkViewScorer(path)
                 scorer.network = onnx_net  # the same session: the same threads
                 runs["scorer_ms"] = partial(scorer.scores, x[0, 0])
-            row = {"network": name, **median_ms(runs, calls, args.warmup), "max_abs_diff": diff}
+            row = {
+                "network": name,
+                **median_ms(runs, calls, args.warmup, args.block),
+                "max_abs_diff": diff,
+            }
             rows.append(row)
     try:
         commit = subprocess.run(
@@ -117,6 +130,7 @@ def main() -> None:
                 "load_average_1min": os.getloadavg()[0],
                 "onnxruntime": onnxruntime.__version__,
                 "calls": args.calls,
+                "block": args.block,
                 "grasp_calls": args.grasp_calls,
                 "rows": rows,
             },
