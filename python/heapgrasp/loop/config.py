@@ -121,11 +121,12 @@ class RunConfig:
     grasp_planner: str = _run("antipodal", "ours")
     """``antipodal`` (analytic, no training) or ``network`` (VGN weights)."""
     grasp_weights: str | None = _run(None, "ours")
-    """Path of grasp-network weights (``grasp_planner = "network"``)."""
+    """Path of the grasp network's ONNX file (``grasp_planner = "network"``)."""
     view_weights: str | None = _run(None, "ours")
-    """Path of view-network weights (``view_planner = "network"``)."""
+    """Path of the view network's ONNX file (``view_planner = "network"``); None: the
+    shipped ``weights/view_network.onnx``."""
     net_device: str = _run("cpu", "ours")
-    """Where the networks run: ``cpu``, ``cuda``, ``cuda:N`` or ``auto``."""
+    """Where the networks run (onnxruntime): ``cpu``, ``cuda``, ``cuda:N`` or ``auto``."""
     layout: str = _run("pile", "VGN")
     """``pile`` or ``packed`` scenes."""
     category: str = _run("mixed", "§VI-C")
