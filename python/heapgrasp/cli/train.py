@@ -288,7 +288,7 @@ def add_parser(
     v.add_argument(
         "--in-channels",
         type=int,
-        choices=(1, 2),
+        choices=(1, 2, 3),
         default=1,
         help="1: occupancy only (the paper); 2: plus the region mask eq. 14 was counted on",
     )

@@ -243,8 +243,8 @@ class TrainConfig:
             raise ValueError(f"lr must be > 0, got {self.lr!r}")
         if self.loss not in LOSSES:
             raise ValueError(f"loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
-        if self.in_channels not in (1, 2):
-            raise ValueError(f"in_channels must be 1 or 2, got {self.in_channels!r}")
+        if self.in_channels not in (1, 2, 3):
+            raise ValueError(f"in_channels must be 1, 2 or 3, got {self.in_channels!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
 
