@@ -268,9 +268,9 @@ def add_parser(
     )
     v.add_argument(
         "--loss",
-        choices=("bce", "mse"),
-        default="bce",
-        help="loss on the U x V map, labels clipped to [0, 1] (default bce)",
+        choices=("mse", "bce"),
+        default="mse",
+        help="loss on the U x V map, labels clipped to [0, 1] (default mse)",
     )
     v.add_argument(
         "--device",

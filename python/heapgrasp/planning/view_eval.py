@@ -87,7 +87,7 @@ def evaluate(
     net: ViewNet,
     data: ViewDataset,
     *,
-    loss: str = "bce",
+    loss: str = "mse",
     gammas: Sequence[float] = GAMMA2,
     batch_size: int = 64,
     device: str | torch.device | None = None,
