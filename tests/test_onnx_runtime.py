@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from heapgrasp import OccupancyGrid
 from heapgrasp.geometry.errors import WeightsError
+from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.inference import (
     META_HPARAMS,
     META_KIND,
@@ -51,12 +52,12 @@ def torch() -> Any:
 
 @pytest.fixture(scope="module")
 def view_nets(torch: Any, tmp_path_factory: pytest.TempPathFactory) -> dict[int, tuple[Any, Path]]:
-    """Small randomly initialised view networks of 1 and 2 input channels, exported."""
+    """Small randomly initialised view networks of 1, 2 and 3 input channels, exported."""
     from heapgrasp.nets import ViewNet, export_onnx
 
     folder = tmp_path_factory.mktemp("view")
     out = {}
-    for channels in (1, 2):
+    for channels in (1, 2, 3):
         torch.manual_seed(channels)
         net = ViewNet(R, VIEW_SHAPE, in_channels=channels, **SMALL).eval()
         path = export_onnx(net, folder / f"view{channels}.onnx", provenance={"data": "test"})
@@ -77,7 +78,7 @@ def grasp_net(torch: Any, tmp_path_factory: pytest.TempPathFactory) -> tuple[Any
 # --------------------------------------------------------------------------- equality
 
 
-@pytest.mark.parametrize("channels", [1, 2])
+@pytest.mark.parametrize("channels", [1, 2, 3])
 def test_onnxruntime_gives_pytorchs_view_scores(
     torch: Any, view_nets: dict[int, tuple[Any, Path]], channels: int
 ) -> None:
@@ -176,6 +177,34 @@ def test_view_scorer_feeds_the_region_to_two_channel_networks(
         NetworkViewScorer(view_nets[1][0])
     with pytest.raises(ValueError, match="target_radius"):
         NetworkViewScorer(view_nets[2][1], target_radius=-1.0)
+
+
+def test_view_scorer_feeds_the_camera_to_three_channel_networks(
+    view_nets: dict[int, tuple[Any, Path]],
+) -> None:
+    scorer = NetworkViewScorer(view_nets[3][1], target_radius=0.05)
+    assert scorer.in_channels == 3
+    grid = OccupancyGrid((0.0, 0.0, 0.0), 0.3, R)
+    here, there = np.eye(4), np.eye(4)
+    here[:3, 3] = (0.15, -0.2, 0.3)
+    there[:3, 3] = (0.45, 0.15, 0.3)
+    ctx = ViewContext(grid, here, np.zeros((*VIEW_SHAPE, 4, 4)), None, None, 0.9)  # type: ignore[arg-type]
+    field = GridFrame((0.0, 0.0, 0.0), 0.3, R).distance_field(here[:3, 3])
+    # nearest the camera: the top voxels of the y = 0 face, in the middle of x
+    a, b, c = np.unravel_index(field.argmin(), field.shape)
+    assert a in (R // 2 - 1, R // 2) and (b, c) == (0, R - 1)
+    np.testing.assert_allclose(
+        field[0, 0, 0], np.linalg.norm(here[:3, 3] - 0.15 / R) / 0.5, rtol=1e-6
+    )
+    x = network_input(grid.occupancy(), None, 3, field)
+    (expected,) = scorer.network.run(x[None])
+    np.testing.assert_array_equal(scorer.scores(ctx), expected[0])
+    moved = scorer.scores(ViewContext(grid, there, ctx.candidates, None, None, 0.9))  # type: ignore[arg-type]
+    assert not np.array_equal(moved, expected[0])  # where the camera is, is read
+    with pytest.raises(ValueError, match="camera pose"):
+        scorer.scores(grid.occupancy())
+    with pytest.raises(ValueError, match="camera channel"):
+        network_input(grid.occupancy(), None, 3)
 
 
 def test_the_scorer_runs_with_torch_blocked(

@@ -176,7 +176,12 @@ def _views(args: argparse.Namespace) -> int:
             "indexed [x, y, z]"
             + (
                 "; channel 1: eq. 14's region, x-y column mask broadcast along z"
-                if config.in_channels == 2
+                if config.in_channels >= 2
+                else ""
+            )
+            + (
+                "; channel 2: each voxel centre's distance to the current camera / 0.5 m"
+                if config.in_channels == 3
                 else ""
             )
         ),
@@ -268,9 +273,10 @@ def add_parser(
     )
     v.add_argument(
         "--loss",
-        choices=("mse", "bce"),
-        default="mse",
-        help="loss on the U x V map, labels clipped to [0, 1] (default mse)",
+        choices=("bce", "mse"),
+        default="bce",
+        help="loss on the U x V map, labels clipped to [0, 1] (default bce; mse through "
+        "the sigmoid can stall with every output saturated)",
     )
     v.add_argument(
         "--device",
@@ -288,9 +294,10 @@ def add_parser(
     v.add_argument(
         "--in-channels",
         type=int,
-        choices=(1, 2),
+        choices=(1, 2, 3),
         default=1,
-        help="1: occupancy only (the paper); 2: plus the region mask eq. 14 was counted on",
+        help="1: occupancy only (the paper); 2: plus the region mask eq. 14 was counted on; "
+        "3: plus the distance of each voxel to the current camera",
     )
     v.add_argument(
         "--workers",

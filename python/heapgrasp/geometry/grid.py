@@ -39,6 +39,17 @@ class GridFrame:
         idx = np.asarray(index, dtype=np.float64)
         return np.asarray(self.origin) + (idx + 0.5) * self.voxel_size
 
+    def distance_field(self, point: npt.ArrayLike, scale: float = 0.5) -> npt.NDArray[np.float32]:
+        """``(R, R, R)`` float32: each voxel centre's distance to ``point`` (m), divided
+        by ``scale`` (the view network's camera channel)."""
+        p = np.asarray(point, dtype=np.float64).reshape(3)
+        c = (np.arange(self.resolution) + 0.5) * self.voxel_size
+        o = np.asarray(self.origin)
+        dx = (c + o[0] - p[0])[:, None, None]
+        dy = (c + o[1] - p[1])[None, :, None]
+        dz = (c + o[2] - p[2])[None, None, :]
+        return (np.sqrt(dx * dx + dy * dy + dz * dz) / scale).astype(np.float32)
+
     def index(self, points: npt.ArrayLike) -> npt.NDArray[np.int64]:
         """Voxel index containing each world point (may lie outside ``[0, R)``)."""
         p = np.asarray(points, dtype=np.float64)

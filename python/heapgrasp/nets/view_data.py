@@ -190,10 +190,10 @@ class ViewDataset:
         """The samples a network with ``in_channels`` inputs can learn: all of them with
         the region channel (2); without it (1) only the whole-grid samples, since a
         region's labels are another function of the same grid."""
-        if in_channels not in (1, 2):
-            raise ValueError(f"in_channels must be 1 or 2, got {in_channels!r}")
+        if in_channels not in (1, 2, 3):
+            raise ValueError(f"in_channels must be 1, 2 or 3, got {in_channels!r}")
         whole = self.whole_grid
-        return self if in_channels == 2 or whole.all() else self.subset(np.flatnonzero(whole))
+        return self if in_channels >= 2 or whole.all() else self.subset(np.flatnonzero(whole))
 
     def subset(self, index: npt.ArrayLike) -> ViewDataset:
         """The samples at ``index`` (same sources)."""
@@ -349,16 +349,23 @@ def batch_inputs(data: ViewDataset, index: npt.ArrayLike, in_channels: int = 1) 
     ``visible > 0``, else 0: :meth:`heapgrasp.OccupancyGrid.occupancy` bit for bit);
     channel 1 (``in_channels = 2``) the region mask broadcast along z (0/1).
     """
-    if in_channels not in (1, 2):
-        raise ValueError(f"in_channels must be 1 or 2, got {in_channels!r}")
+    if in_channels not in (1, 2, 3):
+        raise ValueError(f"in_channels must be 1, 2 or 3, got {in_channels!r}")
     i = np.asarray(index)
     seg = data.segmented[i].astype(np.float32)
     vis = data.visible[i].astype(np.float32)
     r = data.geometry.resolution
     out = np.zeros((len(i), in_channels, r, r, r), dtype=np.float32)
     np.divide(seg, vis, out=out[:, 0], where=vis > 0)
-    if in_channels == 2:
+    if in_channels >= 2:
         out[:, 1] = data.region[i][:, :, :, None]
+    if in_channels == 3:
+        from heapgrasp.geometry.grid import GridFrame
+
+        geo = data.geometry
+        frame = GridFrame((0.0, 0.0, 0.0), geo.cube_size, r)
+        for j, pose in enumerate(data.current[i]):
+            out[j, 2] = frame.distance_field(pose[:3, 3])
     return out
 
 

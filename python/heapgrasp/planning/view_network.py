@@ -14,7 +14,12 @@ PyTorch is never imported. Its input (:func:`network_input`) has one or two chan
 1. (two-channel networks) the voxels eq. 14 is counted on, 0/1: the target's column
    (:func:`~heapgrasp.planning.views.target_region`, ``target_radius`` around the target
    grasp) where the context has a target and ``target_radius > 0``, else every voxel
-   (the paper's eq. 14 over the whole grid), as the oracle counts it.
+   (the paper's eq. 14 over the whole grid), as the oracle counts it;
+2. (three-channel networks) where the camera is: each voxel centre's distance to the
+   current camera position ``p̄^ℓ`` over 0.5 m
+   (:meth:`~heapgrasp.geometry.grid.GridFrame.distance_field`). Eq. 14 scores the
+   trajectory ``f(p̄^ℓ, p̄^{u,v})``, so the labels depend on where the camera is; the
+   paper's network has to guess it from the carving. Not in the paper.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from heapgrasp.geometry.errors import WeightsError
+from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.inference import OnnxNetwork
 from heapgrasp.planning.grasp_network import validate_grid
 from heapgrasp.planning.views import ViewContext, target_region
@@ -35,7 +41,12 @@ __all__ = ["NetworkViewScorer", "network_input"]
 F32 = npt.NDArray[np.float32]
 
 
-def network_input(occupancy: npt.ArrayLike, region: npt.ArrayLike | None, in_channels: int) -> F32:
+def network_input(
+    occupancy: npt.ArrayLike,
+    region: npt.ArrayLike | None,
+    in_channels: int,
+    camera: npt.ArrayLike | None = None,
+) -> F32:
     """The view network's input for one grid: ``(in_channels, R, R, R)`` float32.
 
     Parameters
@@ -45,18 +56,27 @@ def network_input(occupancy: npt.ArrayLike, region: npt.ArrayLike | None, in_cha
     region : array_like or None
         ``(R, R, R)`` mask of the voxels eq. 14 is counted on (bool or 0/1), or None for
         all of them; used by two-channel networks only.
-    in_channels : {1, 2}
+    in_channels : {1, 2, 3}
         The network's input channels.
+    camera : array_like or None
+        ``(R, R, R)`` camera channel (three-channel networks only, required there).
     """
     occ = np.asarray(occupancy, dtype=np.float32)
     if in_channels == 1:
         return np.ascontiguousarray(occ[None])
-    if in_channels != 2:
-        raise ValueError(f"view networks read 1 or 2 channels, not {in_channels}")
+    if in_channels not in (2, 3):
+        raise ValueError(f"view networks read 1, 2 or 3 channels, not {in_channels}")
     mask = np.ones_like(occ) if region is None else np.asarray(region, dtype=np.float32)
     if mask.shape != occ.shape:
         raise ValueError(f"region must have the grid's shape {occ.shape}, got {mask.shape}")
-    return np.ascontiguousarray(np.stack([occ, mask]))
+    if in_channels == 2:
+        return np.ascontiguousarray(np.stack([occ, mask]))
+    if camera is None:
+        raise ValueError("a three-channel view network needs the camera channel")
+    cam = np.asarray(camera, dtype=np.float32)
+    if cam.shape != occ.shape:
+        raise ValueError(f"camera must have the grid's shape {occ.shape}, got {cam.shape}")
+    return np.ascontiguousarray(np.stack([occ, mask, cam]))
 
 
 class NetworkViewScorer:
@@ -98,11 +118,11 @@ class NetworkViewScorer:
         self.target_radius = float(target_radius)
         channels = self.network.input.shape[1]
         assert channels is not None
-        if channels not in (1, 2):
+        if channels not in (1, 2, 3):
             raise WeightsError(
                 self.network.path,
-                f"the view network reads {channels} channels; heapgrasp feeds 1 (occupancy) "
-                f"or 2 (occupancy, region)",
+                f"the view network reads {channels} channels; heapgrasp feeds 1 (occupancy), "
+                f"2 (occupancy, region) or 3 (occupancy, region, camera)",
             )
         self.in_channels: int = channels
 
@@ -143,7 +163,7 @@ class NetworkViewScorer:
             map's shape), or the ``(R, R, R)`` float32 occupancy grid ``Ŝ_{0-1}``
             (eq. 10; a two-channel network then counts every voxel).
         """
-        region = None
+        region = camera = None
         if isinstance(occupancy, ViewContext):
             grid = occupancy.grid.occupancy()
             want = tuple(occupancy.candidates.shape[:2])
@@ -152,10 +172,18 @@ class NetworkViewScorer:
                     f"the view network scores {self.view_shape[0]}×{self.view_shape[1]} "
                     f"candidates, the context has {want[0]}×{want[1]}"
                 )
-            if self.in_channels == 2:
+            if self.in_channels >= 2:
                 region = self.region(occupancy)
+            if self.in_channels == 3:
+                g = occupancy.grid
+                frame = GridFrame(g.origin, g.size, g.resolution)
+                camera = frame.distance_field(np.asarray(occupancy.current_pose)[:3, 3])
+        elif self.in_channels == 3:
+            raise ValueError(
+                "a three-channel view network needs the camera pose: pass a ViewContext"
+            )
         else:
             grid = occupancy
         x = validate_grid(grid, self.resolution, "occupancy")
-        (scores,) = self.network.run(network_input(x, region, self.in_channels)[None])
+        (scores,) = self.network.run(network_input(x, region, self.in_channels, camera)[None])
         return np.ascontiguousarray(scores[0], dtype=np.float32)
