@@ -18,11 +18,10 @@ import json
 import time
 
 import numpy as np
-from scipy.stats import spearmanr
-
 from heapgrasp.data.views import ViewDataConfig, scene_sample
 from heapgrasp.loop.config import RunConfig
 from heapgrasp.sim.build import object_library
+from scipy.stats import spearmanr
 
 
 def main() -> None:

@@ -323,7 +323,8 @@ class OnnxNetwork:
         ``cpu`` (default), ``cuda``, ``cuda:N`` or ``auto`` (:func:`resolve_device`).
     threads : int, optional
         CPU threads of one forward pass (onnxruntime's intra-op threads); default:
-        onnxruntime's, one per physical core.
+        ``HEAPGRASP_NUM_THREADS`` where set (the Rust core's threads too; the workers of
+        a process pool set it to 1), else onnxruntime's, one per physical core.
 
     Raises
     ------
@@ -430,8 +431,12 @@ class OnnxNetwork:
         ort = _ort()
         options = ort.SessionOptions()
         options.log_severity_level = 3  # errors only: no optimiser chatter on stderr
-        if self._threads is not None:
-            options.intra_op_num_threads = self._threads
+        threads = self._threads
+        if threads is None:  # the Rust core's knob: a pool's workers set it to 1
+            env = os.environ.get("HEAPGRASP_NUM_THREADS", "")
+            threads = int(env) if env.isdigit() and int(env) >= 1 else None
+        if threads is not None:
+            options.intra_op_num_threads = threads
         providers = _providers(self.device)
 
         def open_with(prov: list[Any]) -> onnxruntime.InferenceSession:
