@@ -103,6 +103,7 @@ def test_the_presets_are_the_settings_docs_benchmarks_measured() -> None:
     assert RunConfig.load("above") == above
     short = above.replace(
         {
+            "view_planner": "oracle",  # as measured
             "gamma2": 0.0,
             "stop_below": 0.02,
             "stop_detour_weight": 0.1,
@@ -212,7 +213,7 @@ def test_the_oracle_counts_eq14_on_the_configured_column() -> None:
     from heapgrasp.loop.phase import ORACLE_FRAMES, make_view_scorer
     from heapgrasp.planning.views import OracleViewScorer
 
-    scorer = make_view_scorer(RunConfig(target_radius=0.05))
+    scorer = make_view_scorer(RunConfig(view_planner="oracle", target_radius=0.05))
     assert isinstance(scorer, OracleViewScorer) and scorer.frames_per_candidate == ORACLE_FRAMES
     assert scorer.target_radius == 0.05
     assert make_view_scorer(RunConfig(method="no-vp")) is None

@@ -52,7 +52,7 @@ PHASE = BLOCK + textwrap.dedent(
     scene = FakeScene({BOXES!r})
     robot = FakeRobot(scene)
     truth = FakeTruth(scene, robot)
-    config = RunConfig()  # HEAPGrasp with the oracle's views and the numpy critic
+    config = RunConfig(view_planner="oracle")  # HEAPGrasp with the oracle's views and the critic
     pipeline = build_pipeline(config, robot, segmenter=RedSegmenter(), truth=truth)
     assert isinstance(pipeline.view_scorer, OracleViewScorer)
     assert pipeline.critic is not None
@@ -118,7 +118,7 @@ def test_without_scene_truth_the_oracle_is_refused_and_fixed_views_run() -> None
     scene = FakeScene(BOXES)
     robot = FakeRobot(scene)
     with pytest.raises(ConfigError, match="only the simulator has"):
-        build_pipeline(RunConfig(), robot, segmenter=RedSegmenter())
+        build_pipeline(RunConfig(view_planner="oracle"), robot, segmenter=RedSegmenter())
     # A real robot's HEAPGrasp w/o VP: the circle, segmented from RGB, no truth at all.
     pipeline = build_pipeline(RunConfig(method="no-vp"), robot, segmenter=RedSegmenter())
     planned = pipeline.plan()

@@ -434,7 +434,7 @@ def test_train_views_command_errors_exit_2_naming_the_input(
         ([tr, "--val", wide], "resolution = 8 vs 16"),
         ([tr, "--val", va, "--resume"], "no checkpoint.safetensors"),
         ([tr, "--val", va, "--device", "gpu"], "'gpu'"),
-        ([tr, "--val", va, "--in-channels", "3"], "invalid choice: 3"),
+        ([tr, "--val", va, "--in-channels", "4"], "invalid choice: 4"),
         ([tr, "--val", va, "--lr", "-1"], "-1"),
     ]
     for extra, message in cases:

@@ -115,9 +115,10 @@ class RunConfig:
     method: str = _run("heapgrasp", "§VI-B")
     """``heapgrasp`` (view planning), ``no-vp`` (once around a circle of L waypoints, SfS),
     ``vgn`` (circle, depth → TSDF) or ``hemisphere6`` (GraspNeRF's six views, SfS)."""
-    view_planner: str = _run("oracle", "ours")
-    """View planner of ``heapgrasp``: ``oracle`` (exact eq. 14 from the true meshes, needs
-    the simulator), ``network`` (view network weights), ``circle`` or ``hemisphere6``."""
+    view_planner: str = _run("network", "§IV-B")
+    """View planner of ``heapgrasp``: ``network`` (the view network of eq. 13, the shipped
+    weights or ``view_weights``; runs on a robot), ``oracle`` (exact eq. 14 from the true
+    meshes: an upper bound that needs the simulator), ``circle`` or ``hemisphere6``."""
     grasp_planner: str = _run("antipodal", "ours")
     """``antipodal`` (analytic, no training) or ``network`` (VGN weights)."""
     grasp_weights: str | None = _run(None, "ours")
