@@ -348,6 +348,28 @@ def test_in_channels_two_reads_the_region_mask() -> None:
         net(torch.zeros(1, 1, 8, 8, 8))
 
 
+def test_in_channels_three_reads_where_the_camera_is(datasets: dict[str, Path]) -> None:
+    from heapgrasp.geometry.grid import GridFrame
+
+    data = load_view_dataset(datasets["train"])
+    assert len(data.for_network(3)) == len(data)  # region samples too
+    x = batch_inputs(data, [0, 3], 3)
+    np.testing.assert_array_equal(x[:, :2], batch_inputs(data, [0, 3], 2))
+    geo = data.geometry
+    frame = GridFrame((0.0, 0.0, 0.0), geo.cube_size, geo.resolution)
+    for j, i in enumerate([0, 3]):
+        np.testing.assert_array_equal(x[j, 2], frame.distance_field(data.current[i][:3, 3]))
+    # the channel turns with the grid: the field of the camera turned by +90° about the
+    # cube's axis is the turned field (so the 8 symmetries still hold)
+    c = geo.cube_size / 2
+    eye = data.current[0][:3, 3]
+    turned_eye = (c - (eye[1] - c), c + (eye[0] - c), eye[2])
+    turned = transform_grid(torch.from_numpy(x[0, 2]), 1, False).numpy()
+    np.testing.assert_allclose(turned, frame.distance_field(turned_eye), atol=1e-6)
+    net = ViewNet(geo.resolution, geo.view_shape, in_channels=3)
+    assert net(torch.from_numpy(x)).shape == (2, *geo.view_shape)
+
+
 # --------------------------------------------------------------------------- metrics
 
 

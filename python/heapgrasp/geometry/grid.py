@@ -48,7 +48,10 @@ class GridFrame:
         dx = (c + o[0] - p[0])[:, None, None]
         dy = (c + o[1] - p[1])[None, :, None]
         dz = (c + o[2] - p[2])[None, None, :]
-        return (np.sqrt(dx * dx + dy * dy + dz * dz) / scale).astype(np.float32)
+        field: npt.NDArray[np.float32] = (np.sqrt(dx * dx + dy * dy + dz * dz) / scale).astype(
+            np.float32
+        )
+        return field
 
     def index(self, points: npt.ArrayLike) -> npt.NDArray[np.int64]:
         """Voxel index containing each world point (may lie outside ``[0, R)``)."""

@@ -505,6 +505,7 @@ def train(
     mean = float(np.clip(train_data.scores, 0.0, 1.0).mean())
     mean = min(max(mean, 1e-3), 1.0 - 1e-3)
     with torch.no_grad():
+        assert net.head.bias is not None
         net.head.bias.fill_(math.log(mean / (1.0 - mean)))
     net.to(device)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
