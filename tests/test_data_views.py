@@ -131,6 +131,22 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert summary["samples"] + summary["dropped"] == 1 and summary["complete"]
     assert main(["data", "views", str(out), "--scenes", "0"]) == 2
     assert "--scenes" in capsys.readouterr().err
+    # --ray without Ray: a clear message, not a traceback
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_ray(name: str, *args: Any, **kwargs: Any) -> Any:
+        if name == "ray":
+            raise ImportError("No module named 'ray'")
+        return real_import(name, *args, **kwargs)
+
+    builtins.__import__ = no_ray
+    try:
+        assert main(["data", "views", str(out), "--scenes", "2", "--ray", "--quiet"]) == 2
+    finally:
+        builtins.__import__ = real_import
+    assert "pip install 'heapgrasp[ray]'" in capsys.readouterr().err
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "shard-00000.npz").write_bytes(b"x")
     assert main(["data", "views", str(tmp_path / "junk"), "--scenes", "1", "--quiet"]) == 1

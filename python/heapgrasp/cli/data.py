@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 from pathlib import Path
 
 from heapgrasp.bench.argtypes import float_in, int_at_least
@@ -49,8 +50,14 @@ def _views(args: argparse.Namespace) -> int:
             progress=not args.quiet,
         )
     except ShardFailure as exc:
-        print(f"heapgrasp: error: {exc}\nthe other shards are written; run again to retry")
+        print(
+            f"heapgrasp: error: {exc}\nthe other shards are written; run again to retry",
+            file=sys.stderr,
+        )
         return 1
+    except ImportError as exc:  # --ray without Ray
+        print(f"heapgrasp: error: {exc}", file=sys.stderr)
+        return 2
     summary = {k: manifest[k] for k in ("split", "samples", "dropped", "complete")}
     print(json.dumps({"out": str(out), **summary}))
     return 0
