@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import importlib
 import json
 import math
 import os
@@ -541,7 +542,7 @@ def _run_ray(
 ) -> None:
     """The shards as Ray tasks (``pip install 'heapgrasp[ray]'``)."""
     try:
-        import ray  # type: ignore[import-not-found,unused-ignore]
+        ray: Any = importlib.import_module("ray")  # optional; typed loosely either way
     except ImportError:
         raise ImportError(
             "--ray needs Ray, which is not installed: pip install 'heapgrasp[ray]'"
