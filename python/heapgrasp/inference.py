@@ -76,6 +76,7 @@ __all__ = [
     "seal",
     "shipped_weights",
     "weights_dir",
+    "write_atomically",
 ]
 
 F32 = npt.NDArray[np.float32]
@@ -105,6 +106,20 @@ _CPU = "CPUExecutionProvider"
 def weights_dir() -> Path:
     """Where shipped weights live: ``<heapgrasp package>/weights``."""
     return Path(__file__).resolve().parent / "weights"
+
+
+def write_atomically(data: bytes, path: str | os.PathLike[str]) -> Path:
+    """Writes a weights file's bytes to ``path`` through a temporary file and a rename, so
+    the file is whole or absent (the exporters and the critic's writers use it)."""
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, out)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return out
 
 
 def shipped_weights(kind: Kind) -> Path | None:

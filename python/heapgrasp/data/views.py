@@ -495,41 +495,36 @@ def _run_pool(
     failures: dict[int, str],
 ) -> None:
     """The shards on a process pool. A worker that dies (a native crash) breaks the
-    pool: every shard it held is reported, and a new pool runs the rest."""
-    pending = list(todo)
-    while pending:
-        crashed: list[int] = []
-        with ProcessPoolExecutor(min(workers, len(pending)), initializer=_init_worker) as pool:
-            futures = {pool.submit(write_shard, config, s, str(out)): s for s in pending}
-            pending = []
-            remaining = set(futures)
-            while remaining:
-                finished, remaining = wait(remaining, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    shard = futures[fut]
-                    try:
-                        fut.result()
-                    except BrokenProcessPool:
-                        crashed.append(shard)
-                        continue
-                    except Exception as exc:
-                        failures[shard] = f"{type(exc).__name__}: {exc}"
-                        continue
-                    done(shard)
-        if crashed:
-            # Which shard's worker died is not knowable from a broken pool: run each
-            # alone once, so the guilty one fails by itself.
-            for shard in sorted(crashed):
-                with ProcessPoolExecutor(1, initializer=_init_worker) as single:
-                    try:
-                        single.submit(write_shard, config, shard, str(out)).result()
-                    except BrokenProcessPool:
-                        failures[shard] = "the worker process died (a native crash)"
-                        continue
-                    except Exception as exc:
-                        failures[shard] = f"{type(exc).__name__}: {exc}"
-                        continue
+    pool, and every shard it had not finished fails with it; those are run again, each
+    in a pool of its own, so the guilty one fails alone and the others are written."""
+    crashed: list[int] = []
+    with ProcessPoolExecutor(min(workers, len(todo)), initializer=_init_worker) as pool:
+        futures = {pool.submit(write_shard, config, s, str(out)): s for s in todo}
+        remaining = set(futures)
+        while remaining:
+            finished, remaining = wait(remaining, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                shard = futures[fut]
+                try:
+                    fut.result()
+                except BrokenProcessPool:
+                    crashed.append(shard)
+                    continue
+                except Exception as exc:
+                    failures[shard] = f"{type(exc).__name__}: {exc}"
+                    continue
                 done(shard)
+    for shard in sorted(crashed):
+        with ProcessPoolExecutor(1, initializer=_init_worker) as single:
+            try:
+                single.submit(write_shard, config, shard, str(out)).result()
+            except BrokenProcessPool:
+                failures[shard] = "the worker process died (a native crash)"
+                continue
+            except Exception as exc:
+                failures[shard] = f"{type(exc).__name__}: {exc}"
+                continue
+        done(shard)
 
 
 def _run_ray(

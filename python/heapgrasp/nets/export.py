@@ -36,6 +36,7 @@ from heapgrasp.inference import (
     Kind,
     OnnxNetwork,
     seal,
+    write_atomically,
 )
 from heapgrasp.nets.models import GraspNet, ViewNet
 
@@ -177,15 +178,7 @@ def export_onnx(
         _compare(cpu_net, OnnxNetwork.from_bytes(data, kind=kind, name=str(path)), r, in_channels)
     finally:
         net.to(device).train(was_training)
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return out
+    return write_atomically(data, path)
 
 
 def _compare(net: nn.Module, onnx_net: OnnxNetwork, r: int, channels: int) -> None:

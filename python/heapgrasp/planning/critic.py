@@ -371,7 +371,8 @@ class GraspCritic:
         """Writes the critic as an ONNX file (atomically), its provenance this critic's
         :attr:`metadata` updated with ``metadata``, ``command`` and the time. Needs the
         ``onnx`` package (``heapgrasp[train]``)."""
-        from heapgrasp.planning.critic_net import with_metadata, write_atomically
+        from heapgrasp.inference import write_atomically
+        from heapgrasp.planning.critic_net import with_metadata
 
         meta = dict(self.metadata)
         meta.update(metadata or {})

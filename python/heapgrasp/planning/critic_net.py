@@ -41,6 +41,7 @@ from heapgrasp.inference import (
     META_PROVENANCE,
     META_VERSION,
     seal,
+    write_atomically,
 )
 from heapgrasp.planning.critic import CROP_SHAPE, N_SCALARS, read_critic_arrays
 
@@ -276,19 +277,6 @@ def with_metadata(
     proto = onnx.load_model_from_string(model_bytes)
     _set_metadata(proto, hparams, provenance)
     return seal(proto.SerializeToString())
-
-
-def write_atomically(data: bytes, path: str | os.PathLike[str]) -> Path:
-    """Writes ``data`` to ``path`` through a temporary file and a rename."""
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return out
 
 
 def convert_npz(
