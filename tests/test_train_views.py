@@ -314,6 +314,50 @@ def test_resume_continues_exactly(tmp_path: Path, datasets: dict[str, Path]) -> 
         train(other, tr, va, tmp_path / "cut", resume=True, progress=False, log=None)
 
 
+def test_a_killed_training_resumes_to_the_uninterrupted_weights(
+    tmp_path: Path, datasets: dict[str, Path]
+) -> None:
+    """SIGKILL (no clean-up at all) once the first checkpoint is on disk, then
+    ``--resume``: the final weights are those of a run never stopped."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from safetensors.numpy import load_file
+
+    def command(out: Path, *extra: str) -> list[str]:
+        return [
+            sys.executable, "-m", "heapgrasp", "train", "views", str(datasets["train"]),
+            "--val", str(datasets["val"]), "--out", str(out), "--epochs", "6",
+            "--batch-size", "4", "--seed", "3", "--workers", "1", "--no-progress", *extra,
+        ]  # fmt: skip
+
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    subprocess.run(command(whole), check=True, capture_output=True, env=env)
+    proc = subprocess.Popen(
+        command(cut), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env
+    )
+    try:
+        while not (cut / "checkpoint.safetensors").exists() and proc.poll() is None:
+            time.sleep(0.005)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait()
+    assert proc.returncode == -signal.SIGKILL, "it finished before the kill: nothing tested"
+    assert not (cut / "view_network.safetensors").exists()
+    done = subprocess.run(command(cut, "--resume"), capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "resuming" in done.stdout + done.stderr
+    a = load_file(str(whole / "view_network.safetensors"))
+    b = load_file(str(cut / "view_network.safetensors"))
+    assert a.keys() == b.keys()
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key])
+
+
 def test_a_test_or_shared_object_dataset_is_never_trained_on(
     tmp_path: Path, datasets: dict[str, Path]
 ) -> None:
