@@ -247,7 +247,7 @@ def test_make_view_scorer_checks_the_network_against_the_run(
     cfg = RunConfig.from_mapping({**base, "view_weights": one, "target_radius": 0.0})
     assert isinstance(make_view_scorer(cfg), NetworkViewScorer)
     # a one-channel network cannot count eq. 14 on the target's column
-    with pytest.raises(ConfigError, match=r"one-channel .*target_radius = 0.* two-channel"):
+    with pytest.raises(ConfigError, match=r"one-channel .*target_radius = 0.* region channel"):
         make_view_scorer(RunConfig.from_mapping({**base, "view_weights": one}))
     with pytest.raises(ConfigError, match=r"reads 16³ grids, the run's grid is 40³"):
         make_view_scorer(RunConfig.from_mapping({**base, "resolution": 40, "view_weights": two}))

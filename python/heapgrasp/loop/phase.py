@@ -41,9 +41,10 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -67,6 +68,10 @@ from heapgrasp.planning.views import OracleViewScorer, ViewContext, ViewScorer, 
 from heapgrasp.planning.volumes import GraspCandidate, GraspPlanner, select_candidates
 from heapgrasp.robot.grasping import Grasp, GraspOutcome
 from heapgrasp.robot.interfaces import Robot, SceneTruth, UnreachableError
+
+if TYPE_CHECKING:
+    from heapgrasp.planning.grasp_network import NetworkGraspPlanner
+    from heapgrasp.planning.view_network import NetworkViewScorer
 
 __all__ = [
     "MEMORY_TOLERANCE",
@@ -599,22 +604,12 @@ def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND)
         from heapgrasp.planning.antipodal import AntipodalPlanner
 
         return AntipodalPlanner(max_opening=gripper.max_opening, gripper=gripper)
-    from heapgrasp.geometry.errors import WeightsError
     from heapgrasp.planning.grasp_network import NetworkGraspPlanner
 
     weights = _weights(config.grasp_weights, "grasp-network", "grasp_weights")
-    device = net_device(config)
-    try:
-        planner = NetworkGraspPlanner(weights, device=device)
-    except WeightsError as err:  # a bad file is a bad setting: one clear error, before any scene
-        raise ConfigError(f"grasp_weights: {err}") from err
-    except ValueError as err:  # the device cannot run it
-        raise ConfigError(f"net_device: {err}") from err
-    if planner.resolution != config.resolution:
-        raise ConfigError(
-            f"grasp_weights: {weights} reads {planner.resolution}³ grids, the run's grid is "
-            f"{config.resolution}³ (resolution)"
-        )
+    planner = _open_network(
+        config, "grasp_weights", weights, lambda w, d: NetworkGraspPlanner(w, device=d)
+    )
     if config.method == "vgn":
         planner.input_kind = "tsdf"
     return planner
@@ -635,6 +630,31 @@ def make_critic(config: RunConfig) -> GraspCritic | None:
         raise ConfigError(f"grasp_critic: {err}") from err
 
 
+_Net = TypeVar("_Net", "NetworkGraspPlanner", "NetworkViewScorer")
+
+
+def _open_network(
+    config: RunConfig, setting: str, weights: Path, open_: Callable[[Path, str], _Net]
+) -> _Net:
+    """A network planner opened from ``weights`` on the configured device; a bad file, a
+    device that cannot run it or a grid side other than the run's is a ConfigError naming
+    ``setting``, before any scene."""
+    from heapgrasp.geometry.errors import WeightsError
+
+    try:
+        net = open_(weights, net_device(config))
+    except WeightsError as err:  # a bad file is a bad setting: one clear error
+        raise ConfigError(f"{setting}: {err}") from err
+    except ValueError as err:  # the device cannot run it
+        raise ConfigError(f"net_device: {err}") from err
+    if net.resolution != config.resolution:
+        raise ConfigError(
+            f"{setting}: {weights} reads {net.resolution}³ grids, the run's grid is "
+            f"{config.resolution}³ (resolution)"
+        )
+    return net
+
+
 def make_view_scorer(config: RunConfig) -> ViewScorer | None:
     """The configured view scorer; None for fixed-view methods."""
     if config.method != "heapgrasp" or config.view_planner in ("circle", "hemisphere6"):
@@ -643,22 +663,15 @@ def make_view_scorer(config: RunConfig) -> ViewScorer | None:
         return OracleViewScorer(
             frames_per_candidate=ORACLE_FRAMES, target_radius=config.target_radius
         )
-    from heapgrasp.geometry.errors import WeightsError
     from heapgrasp.planning.view_network import NetworkViewScorer
 
     weights = _weights(config.view_weights, "view-network", "view_weights")
-    device = net_device(config)
-    try:
-        scorer = NetworkViewScorer(weights, device=device, target_radius=config.target_radius)
-    except WeightsError as err:
-        raise ConfigError(f"view_weights: {err}") from err
-    except ValueError as err:  # the device cannot run it
-        raise ConfigError(f"net_device: {err}") from err
-    if scorer.resolution != config.resolution:
-        raise ConfigError(
-            f"view_weights: {weights} reads {scorer.resolution}³ grids, the run's grid is "
-            f"{config.resolution}³ (resolution)"
-        )
+    scorer = _open_network(
+        config,
+        "view_weights",
+        weights,
+        lambda w, d: NetworkViewScorer(w, device=d, target_radius=config.target_radius),
+    )
     if scorer.view_shape != (config.U, config.V):
         u, v = scorer.view_shape
         raise ConfigError(
@@ -670,7 +683,7 @@ def make_view_scorer(config: RunConfig) -> ViewScorer | None:
             f"view_weights: {weights} is a one-channel view network (occupancy only): it "
             f"cannot count eq. 14 on the target's column that target_radius = "
             f"{config.target_radius:g} asks for; set target_radius = 0 (the paper's eq. 14 "
-            f"over the whole grid) or use two-channel weights (occupancy + region)"
+            f"over the whole grid) or use weights with the region channel (2 or 3 channels)"
         )
     return scorer
 

@@ -83,6 +83,18 @@ N_SCALARS = 12
 _N_FEATURES = 2 * int(np.prod(CROP_SHAPE)) + N_SCALARS
 
 
+def cnn_shapes(c1: int, c2: int, hidden: int) -> dict[str, tuple[int, ...]]:
+    """Shapes of the CNN critic's arrays for ``c1``, ``c2`` convolution channels and
+    ``hidden`` units (the biases ``conv1_b``, ``conv2_b``, ``fc1_b`` set them)."""
+    return {
+        "conv1_w": (c1, 2, 3, 3, 3),
+        "conv2_w": (c2, c1, 3, 3, 3),
+        "fc1_w": (hidden, 8 * c2 + N_SCALARS),
+        "fc2_w": (1, hidden),
+        "fc2_b": (1,),
+    }
+
+
 def _lattice() -> F64:
     axes = [
         np.arange(lo, lo + n, dtype=np.float64) for lo, n in zip(_CROP_LOW, CROP_SHAPE, strict=True)
@@ -533,14 +545,7 @@ def read_critic_arrays(
         c1 = len(_floats(p, arrays, names["conv1_b"], 1))
         c2 = len(_floats(p, arrays, names["conv2_b"], 1))
         hidden = len(_floats(p, arrays, names["fc1_b"], 1))
-        expected = {
-            "conv1_w": (c1, 2, 3, 3, 3),
-            "conv2_w": (c2, c1, 3, 3, 3),
-            "fc1_w": (hidden, 8 * c2 + N_SCALARS),
-            "fc2_w": (1, hidden),
-            "fc2_b": (1,),
-        }
-        for name, shape in expected.items():
+        for name, shape in cnn_shapes(c1, c2, hidden).items():
             _floats(p, arrays, names[name], shape)
     meta = _metadata(p, arrays, "linear" if version == 1 else "cnn")
     return arrays, meta

@@ -43,7 +43,7 @@ from heapgrasp.inference import (
     seal,
     write_atomically,
 )
-from heapgrasp.planning.critic import CROP_SHAPE, N_SCALARS, read_critic_arrays
+from heapgrasp.planning.critic import CROP_SHAPE, N_SCALARS, cnn_shapes, read_critic_arrays
 
 if TYPE_CHECKING:
     import onnx
@@ -86,14 +86,7 @@ class ConvCritic:
 
     def __post_init__(self) -> None:
         c1, c2, hidden = len(self.conv1_b), len(self.conv2_b), len(self.fc1_b)
-        expected = {
-            "conv1_w": (c1, 2, 3, 3, 3),
-            "conv2_w": (c2, c1, 3, 3, 3),
-            "fc1_w": (hidden, 8 * c2 + N_SCALARS),
-            "fc2_w": (1, hidden),
-            "fc2_b": (1,),
-        }
-        for name, shape in expected.items():
+        for name, shape in cnn_shapes(c1, c2, hidden).items():
             got = getattr(self, name).shape
             if got != shape:
                 raise ValueError(f"critic network: {name} must have shape {shape}, got {got}")
