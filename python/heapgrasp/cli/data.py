@@ -38,7 +38,6 @@ def _views(args: argparse.Namespace) -> int:
         shard_size=args.shard_size,
         max_objects=args.max_objects,
         region_fraction=args.region_fraction,
-        frames_per_candidate=args.frames_per_candidate,
     )
     out = Path(args.out)
     try:
@@ -102,12 +101,6 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         type=float_in(0.0, 1.0),
         default=0.5,
         help="share of k >= 1 samples labelled on a target's column (default 0.5)",
-    )
-    p.add_argument(
-        "--frames-per-candidate",
-        type=int_at_least(1),
-        default=10,
-        help="silhouettes per hypothetical trajectory of eq. 14 (default 10, the oracle's)",
     )
     p.add_argument(
         "--workers",
