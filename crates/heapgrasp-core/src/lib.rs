@@ -28,6 +28,7 @@ pub mod camera;
 pub mod carve;
 pub mod error;
 pub mod filter;
+pub mod grasp_label;
 pub mod grid;
 pub mod nms;
 pub mod occupancy;

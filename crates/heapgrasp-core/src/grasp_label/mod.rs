@@ -1,0 +1,434 @@
+//! Exact-geometry grasp labels: whether a parallel-jaw grasp executed as VGN executes it
+//! in physics would hold an object, decided on the true collision geometry instead of
+//! simulated (issue 38 §1; the labels of VGN's data set that HEAPGrasp §V trains on).
+//!
+//! The execution it mirrors (`heapgrasp.robot.grasping.execute_grasp` with the simulated
+//! Panda hand): the hand, fingers at the widest opening, is placed at the pre-grasp pose
+//! `pregrasp_distance` back along the grasp's z, moves straight to the grasp pose and
+//! stops at any contact; then the fingers close, force-limited, the hand lifts and shakes,
+//! and the grasp holds if both fingers touch one object. Here, per grasp:
+//!
+//! 1. **approach** — each box of the hand ([`HandGeometry`]), swept from the pre-grasp
+//!    pose to the grasp pose (a translation along its own z, so the swept volume is the
+//!    box lengthened by the pre-grasp distance), must stay more than the contact margin
+//!    from every convex piece of every object and from the table, else
+//!    [`Reason::Collision`];
+//! 2. **closing** — each finger's pad is shape-cast inward along ∓y across the whole
+//!    opening; its first contact is what that finger closes on. The fingers are
+//!    coupled, so a finger that meets a free object first pushes it toward the other
+//!    finger: the closed width is the opening minus both fingers' travels, wherever the
+//!    object started between them. Both fingers must meet the same object
+//!    ([`Reason::Empty`], [`Reason::TwoObjects`]), the width must reach the minimum the
+//!    simulator counts as holding ([`Reason::Narrow`]), and each contact normal must lie
+//!    within the friction cone about the closing direction ([`Reason::NotAntipodal`]).
+//!    A closing finger never meets the table: what it sweeps lies between the two
+//!    fingers, inside their convex hull, and step 1 put both above the table.
+//!
+//! **Margins.** PyBullet reports a contact as soon as two shapes come within their
+//! collision margins (a convex mesh shape has one of 1 mm; a box primitive such as the
+//! table none): the hand counts as touching an object closer than `hand_margin +
+//! object_margin` and the table closer than `hand_margin`, and a finger closing on an
+//! object stops that far from it, so widths include the margins as the simulator's do.
+//!
+//! Grasps are labelled in parallel over contiguous chunks; each label depends on its
+//! grasp alone, so results do not depend on the thread count.
+
+mod hand;
+mod scene;
+#[cfg(test)]
+mod tests;
+
+pub use hand::HandGeometry;
+pub use scene::{GraspScene, MAX_PIECE_VERTICES};
+
+use nalgebra::{Matrix3, Vector3};
+use parry3d::math::{Mat3, Pose as PPose, Rot3, Vector as PVec};
+use parry3d::query::details::{
+    cast_shapes_support_map_support_map, closest_points_support_map_support_map,
+    contact_support_map_support_map,
+};
+use parry3d::query::{ClosestPoints, ShapeCastOptions};
+use parry3d::shape::Cuboid;
+
+use crate::camera::Pose;
+use crate::error::{Error, Result};
+use crate::parallel;
+use hand::{HandBoxes, TcpBox};
+
+/// How a grasp was judged ([`GraspLabel::reason`]); the `u8` codes cross to Python.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum Reason {
+    /// Both fingers hold one object with antipodal contacts.
+    Success = 0,
+    /// The open hand touches an object or the table at the pre-grasp pose or on the
+    /// approach to the grasp pose.
+    Collision = 1,
+    /// A finger closes on nothing.
+    Empty = 2,
+    /// The fingers close on two different objects.
+    TwoObjects = 3,
+    /// A contact normal lies outside the friction cone about the closing direction.
+    NotAntipodal = 4,
+    /// The fingers close narrower than the minimum width (the simulator takes it for
+    /// shut).
+    Narrow = 5,
+}
+
+impl Reason {
+    /// Every reason, in code order.
+    pub const ALL: [Reason; 6] = [
+        Reason::Success,
+        Reason::Collision,
+        Reason::Empty,
+        Reason::TwoObjects,
+        Reason::NotAntipodal,
+        Reason::Narrow,
+    ];
+
+    /// The reason's name (`"collision"`, `"not-antipodal"`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Reason::Success => "success",
+            Reason::Collision => "collision",
+            Reason::Empty => "empty",
+            Reason::TwoObjects => "two-objects",
+            Reason::NotAntipodal => "not-antipodal",
+            Reason::Narrow => "narrow",
+        }
+    }
+}
+
+/// The label of one grasp.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GraspLabel {
+    /// Whether the grasp holds an object.
+    pub success: bool,
+    /// Distance between the finger pads once closed (m); the widest opening when the
+    /// grasp fails.
+    pub width: f32,
+    /// Id of the object held, or -1.
+    pub object: i32,
+    /// Why.
+    pub reason: Reason,
+}
+
+/// The hand and the execution it is labelled for.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LabelParams {
+    /// The gripper's boxes and widest opening (the grasps are executed fully open).
+    pub hand: HandGeometry,
+    /// Distance of the pre-grasp pose back along the grasp's z (m).
+    pub pregrasp_distance: f64,
+    /// Coulomb friction coefficient between fingers and objects: the friction cone's
+    /// half-angle is `atan(friction)`.
+    pub friction: f64,
+    /// Collision margin of the hand's shapes (m).
+    pub hand_margin: f64,
+    /// Collision margin of the objects' convex pieces (m); the table has none.
+    pub object_margin: f64,
+    /// Smallest closed width that holds an object (m).
+    pub min_width: f64,
+}
+
+impl LabelParams {
+    /// Checks every field.
+    ///
+    /// # Errors
+    /// [`Error::Value`] naming the first bad field.
+    pub fn validate(&self) -> Result<()> {
+        self.hand.validate()?;
+        let checks = [
+            ("pregrasp_distance", self.pregrasp_distance, 0.0, 1.0),
+            ("hand_margin", self.hand_margin, 0.0, 0.05),
+            ("object_margin", self.object_margin, 0.0, 0.05),
+            ("min_width", self.min_width, 0.0, self.hand.max_opening),
+        ];
+        for (name, v, lo, hi) in checks {
+            if !(v >= lo && v <= hi) {
+                return Err(Error::value(name, v, format!("must be in [{lo}, {hi}] m")));
+            }
+        }
+        if !(self.friction > 0.0 && self.friction.is_finite()) {
+            return Err(Error::value(
+                "friction",
+                self.friction,
+                "must be finite and > 0",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Labels grasps on a [`GraspScene`] for a hand ([`LabelParams`]).
+#[derive(Debug, Clone)]
+pub struct GraspLabeller {
+    scene: GraspScene,
+    params: LabelParams,
+    boxes: HandBoxes,
+    swept: [Cuboid; 6],
+    pads: [Cuboid; 2],
+    cos_cone: f64,
+}
+
+/// What a closing finger meets first: the object's index and the contact normal out of
+/// the pad (TCP axes).
+type Closure = Option<(usize, [f32; 3])>;
+
+/// A piece near the hand, with its object's pose in the TCP frame.
+struct Near {
+    piece: usize,
+    /// The ball centre in the TCP frame.
+    centre: [f64; 3],
+    rotation: Rot3,
+    translation: Vector3<f64>,
+}
+
+impl Near {
+    /// The piece's object pose in the frame of a box centred at `at` (TCP axes), in
+    /// millimetres.
+    fn pose_from(&self, at: &[f64; 3]) -> PPose {
+        let t = (self.translation - Vector3::from(*at)) * MM;
+        PPose::from_parts(PVec::new(t.x as f32, t.y as f32, t.z as f32), self.rotation)
+    }
+}
+
+fn rot_to_parry(r: &Matrix3<f64>) -> Rot3 {
+    let col = |j: usize| PVec::new(r[(0, j)] as f32, r[(1, j)] as f32, r[(2, j)] as f32);
+    Rot3::from_mat3(&Mat3::from_cols(col(0), col(1), col(2))).normalize()
+}
+
+/// A box as a parry cuboid, in millimetres.
+fn cuboid(b: &TcpBox) -> Cuboid {
+    Cuboid::new(PVec::new(
+        (b.half[0] * MM) as f32,
+        (b.half[1] * MM) as f32,
+        (b.half[2] * MM) as f32,
+    ))
+}
+
+/// World z of the lowest point of `b` with the TCP at `tcp2world`.
+fn lowest_z(tcp2world: &Pose, b: &TcpBox) -> f64 {
+    let (r, t) = (tcp2world.rotation(), tcp2world.translation());
+    (0..3)
+        .map(|i| r[(2, i)] * b.centre[i] - r[(2, i)].abs() * b.half[i])
+        .sum::<f64>()
+        + t.z
+}
+
+/// parry's queries run in millimetres: its GJK tolerances are absolute, and in f32 on
+/// centimetre-sized shapes expressed in metres its distances and casts come out
+/// millimetres wrong (a 2.5 cm ball 4 mm from a box measured 7.8 mm away); from
+/// centimetres up they agree with the exact values to the polyhedra's own precision.
+pub(crate) const MM: f64 = 1000.0;
+
+/// Fewest grasps worth a thread of their own.
+const MIN_GRASPS_PER_THREAD: usize = 32;
+
+impl GraspLabeller {
+    /// A labeller for `params`'s hand on `scene`.
+    ///
+    /// # Errors
+    /// As [`LabelParams::validate`].
+    pub fn new(scene: GraspScene, params: LabelParams) -> Result<Self> {
+        params.validate()?;
+        let boxes = params.hand.boxes(params.pregrasp_distance);
+        let atan = params.friction.atan();
+        Ok(Self {
+            scene,
+            swept: boxes.swept.each_ref().map(cuboid),
+            pads: boxes.pads.each_ref().map(cuboid),
+            boxes,
+            cos_cone: atan.cos(),
+            params,
+        })
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &GraspScene {
+        &self.scene
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &LabelParams {
+        &self.params
+    }
+
+    /// Adds an object to the scene ([`GraspScene::add_object`]).
+    ///
+    /// # Errors
+    /// As [`GraspScene::add_object`].
+    pub fn add_object(&mut self, id: i32, obj2world: Pose, pieces: &[&[f64]]) -> Result<()> {
+        self.scene.add_object(id, obj2world, pieces)
+    }
+
+    /// Labels grasps given as TCP poses (`tcp2world`: z the approach, fingers closing
+    /// along y), on `threads` threads (0: [`parallel::num_threads`]).
+    pub fn label(&self, tcp2world: &[Pose], threads: usize) -> Vec<GraspLabel> {
+        let threads = if threads == 0 {
+            parallel::num_threads()
+        } else {
+            threads
+        };
+        let parts = threads.min(tcp2world.len() / MIN_GRASPS_PER_THREAD).max(1);
+        parallel::map_ranges(tcp2world.len(), parts, |range| {
+            tcp2world[range]
+                .iter()
+                .map(|p| self.label_one(p))
+                .collect::<Vec<_>>()
+        })
+        .concat()
+    }
+
+    /// Labels one grasp (see the module documentation).
+    pub fn label_one(&self, tcp2world: &Pose) -> GraspLabel {
+        let fail = |reason| GraspLabel {
+            success: false,
+            width: self.params.hand.max_opening as f32,
+            object: -1,
+            reason,
+        };
+        let p = &self.params;
+        let table = self.scene.table_z();
+        if self
+            .boxes
+            .swept
+            .iter()
+            .any(|b| lowest_z(tcp2world, b) < table + p.hand_margin)
+        {
+            return fail(Reason::Collision);
+        }
+        let margin = p.hand_margin + p.object_margin;
+        let near = self.near_pieces(tcp2world, margin);
+        for n in &near {
+            let piece = &self.scene.pieces[n.piece];
+            let reach = piece.radius + margin;
+            for (b, shape) in self.boxes.swept.iter().zip(&self.swept) {
+                if !b.near(&n.centre, reach) {
+                    continue;
+                }
+                let pos12 = n.pose_from(&b.centre);
+                let touching = closest_points_support_map_support_map(
+                    &pos12,
+                    shape,
+                    &piece.hull,
+                    (margin * MM) as f32,
+                );
+                if !matches!(touching, ClosestPoints::Disjoint) {
+                    return fail(Reason::Collision);
+                }
+            }
+        }
+        let [(left, d_left), (right, d_right)] =
+            [0, 1].map(|side| self.closure(&near, side, margin));
+        let (Some((a, n_left)), Some((b, n_right))) = (left, right) else {
+            return fail(Reason::Empty);
+        };
+        if a != b {
+            return fail(Reason::TwoObjects);
+        }
+        let width = (p.hand.max_opening - d_left - d_right).max(0.0);
+        if width < p.min_width {
+            return fail(Reason::Narrow);
+        }
+        // The left finger closes along −y, the right one along +y.
+        if -f64::from(n_left[1]) < self.cos_cone || f64::from(n_right[1]) < self.cos_cone {
+            return fail(Reason::NotAntipodal);
+        }
+        GraspLabel {
+            success: true,
+            width: width as f32,
+            object: self.scene.objects[a].id,
+            reason: Reason::Success,
+        }
+    }
+
+    /// The pieces whose bounding ball comes within `margin` of the hand's reach.
+    fn near_pieces(&self, tcp2world: &Pose, margin: f64) -> Vec<Near> {
+        let world2tcp = tcp2world.inverse();
+        let mut near = Vec::new();
+        let mut object_pose: Option<(usize, Rot3, Vector3<f64>)> = None;
+        for (k, piece) in self.scene.pieces.iter().enumerate() {
+            let c = world2tcp.transform_point(&piece.centre);
+            let centre = [c.x, c.y, c.z];
+            if !self.boxes.bound.near(&centre, piece.radius + margin) {
+                continue;
+            }
+            // Pieces of one object are stored together: convert its pose once.
+            let (rotation, translation) = match object_pose {
+                Some((o, r, t)) if o == piece.object => (r, t),
+                _ => {
+                    let obj2tcp = world2tcp.compose(&self.scene.objects[piece.object].obj2world);
+                    let r = rot_to_parry(obj2tcp.rotation());
+                    let t = *obj2tcp.translation();
+                    object_pose = Some((piece.object, r, t));
+                    (r, t)
+                }
+            };
+            near.push(Near {
+                piece: k,
+                centre,
+                rotation,
+                translation,
+            });
+        }
+        near
+    }
+
+    /// What finger `side` (0: left, +y, closing along −y; 1: right) meets first over
+    /// the whole opening, and how far it travels to get there.
+    fn closure(&self, near: &[Near], side: usize, margin: f64) -> (Closure, f64) {
+        let dir = if side == 0 { -1.0 } else { 1.0 };
+        let pad = &self.boxes.pads[side];
+        let reach = self.params.hand.max_opening;
+        let mut best = reach;
+        let swept = pad.swept(1, dir * reach);
+        let vel12 = PVec::new(0.0, -dir as f32, 0.0);
+        let mut first: Option<usize> = None;
+        for (k, n) in near.iter().enumerate() {
+            let piece = &self.scene.pieces[n.piece];
+            if !swept.near(&n.centre, piece.radius + margin) {
+                continue;
+            }
+            let options = ShapeCastOptions {
+                max_time_of_impact: (reach * MM) as f32,
+                target_distance: (margin * MM) as f32,
+                stop_at_penetration: true,
+                compute_impact_geometry_on_penetration: false,
+            };
+            let pos12 = n.pose_from(&pad.centre);
+            let hit = cast_shapes_support_map_support_map(
+                &pos12,
+                vel12,
+                &self.pads[side],
+                &piece.hull,
+                options,
+            );
+            if let Some(hit) = hit {
+                let travel = f64::from(hit.time_of_impact) / MM;
+                if travel < best {
+                    (best, first) = (travel, Some(k));
+                }
+            }
+        }
+        let Some(k) = first else {
+            return (None, best);
+        };
+        // The cast's own normal is the last direction its ray advanced along, not the
+        // contact normal; the closest points of the pad where it stops and the piece
+        // give the normal as the physics engine computes it.
+        let n = &near[k];
+        let piece = &self.scene.pieces[n.piece];
+        let stop = [pad.centre[0], pad.centre[1] + dir * best, pad.centre[2]];
+        let normal = contact_support_map_support_map(
+            &n.pose_from(&stop),
+            &self.pads[side],
+            &piece.hull,
+            ((2.0 * margin + 1e-3) * MM) as f32,
+        )
+        .map_or([0.0, -dir as f32, 0.0].map(|v| -v), |c| {
+            [c.normal1.x, c.normal1.y, c.normal1.z]
+        });
+        (Some((piece.object, normal)), best)
+    }
+}
