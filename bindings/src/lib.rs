@@ -9,6 +9,7 @@ mod camera;
 mod convert;
 mod errors;
 mod filter;
+mod grasp_label;
 mod occupancy;
 mod raster;
 mod roofs;
@@ -40,6 +41,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<occupancy::PyOccupancyGrid>()?;
     m.add_class::<raster::PyMeshScene>()?;
     m.add_class::<tsdf::PyTsdfVolume>()?;
+    m.add_class::<grasp_label::PyGraspLabeller>()?;
     m.add_function(wrap_pyfunction!(score::score_views, m)?)?;
     m.add_function(wrap_pyfunction!(antipodal::antipodal_grasps, m)?)?;
     m.add_function(wrap_pyfunction!(roofs::keep_silhouettes, m)?)?;

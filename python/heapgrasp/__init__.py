@@ -3,7 +3,8 @@
 The geometric core (Rust, ``heapgrasp._core``) provides the pieces every experiment
 shares: pinhole cameras, the Shape-from-Silhouette occupancy grid of HEAPGrasp
 (eq. 9-10), TSDF fusion for the VGN baseline, ground-truth mesh silhouettes, exact
-view scoring (eq. 14), and 3-D smoothing / non-maximum suppression.
+view scoring (eq. 14), 3-D smoothing / non-maximum suppression, and exact-geometry
+grasp labels.
 
 Conventions (shared by every function):
 
@@ -18,6 +19,7 @@ Conventions (shared by every function):
 """
 
 from heapgrasp._core import (
+    GraspLabeller,
     HeapgraspError,
     InvalidValueError,
     MeshError,
@@ -39,6 +41,7 @@ from heapgrasp._core import (
 )
 
 __all__ = [
+    "GraspLabeller",
     "HeapgraspError",
     "InvalidValueError",
     "MeshError",

@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "GraspLabeller",
     "HeapgraspError",
     "InvalidValueError",
     "MeshError",
@@ -205,6 +206,65 @@ class MeshScene:
         """uint32 ``(H, W)``: id of the nearest mesh, 0 where none."""
     def cast_ray(self, origin: _Vec3, direction: _Vec3) -> tuple[float, int] | None:
         """First hit of a world-frame ray: ``(distance, id)`` or None."""
+
+@final
+class GraspLabeller:
+    """Exact-geometry grasp labels: would a parallel-jaw grasp, executed as VGN executes
+    it in physics with the fingers fully open, hold an object?
+
+    The scene: rigid objects, each a set of convex pieces (every ``(V, 3)`` vertex array
+    is collided as its convex hull) at an ``obj2world`` pose, on the table's half-space
+    below ``z = table_z`` (world frame, metres). The hand: ``hand``, a mapping with the
+    fields of :class:`heapgrasp.geometry.gripper.GripperGeometry` (TCP frame: z the
+    approach, fingers closing along y, pads at ``y = ±max_opening / 2``; the two
+    ``*_half`` entries are pairs).
+
+    Per grasp: (1) the open hand's boxes, swept from the pre-grasp pose
+    (``pregrasp_distance`` back along z) to the grasp pose, stay farther than
+    ``hand_margin + object_margin`` from every piece and ``hand_margin`` from the table,
+    else ``collision``; (2) each finger's pad, cast inward across the whole opening,
+    meets an object (``empty`` if not), both the same one (``two-objects``), the closed
+    width (opening minus both travels: a finger that meets a free object first pushes it
+    to the other) is at least ``min_width`` (``narrow``), and both contact normals lie
+    within ``atan(friction)`` of the closing direction (``not-antipodal``).
+    ``reasons()`` names the codes. Raises ``InvalidValueError`` naming a bad parameter.
+    """
+
+    def __new__(
+        cls,
+        hand: Mapping[str, Any],
+        *,
+        table_z: float,
+        friction: float,
+        pregrasp_distance: float,
+        hand_margin: float,
+        object_margin: float,
+        min_width: float,
+    ) -> GraspLabeller: ...
+    def add_object(self, id: int, obj2world: _F64, pieces: Sequence[_F64]) -> None:
+        """Adds object ``id`` (an int in [0, 2**31 - 1], not in the scene yet) at
+        ``obj2world`` (4, 4) float64, made of ``pieces``: (V, 3) float64 vertex arrays in
+        the object frame (m), V >= 4 spanning a volume (else ``MeshError``), at most 4096
+        pieces."""
+    def label(
+        self, tcp2world: _F64, *, threads: int | None = None
+    ) -> tuple[npt.NDArray[np.bool_], _F32, npt.NDArray[np.int32], npt.NDArray[np.uint8]]:
+        """Labels ``tcp2world`` (N, 4, 4) float64 rigid TCP poses (world) on ``threads``
+        threads (None or 0: ``num_threads()``; results do not depend on it), releasing
+        the GIL. Returns ``(success bool (N,), width float32 (N,), object int32 (N,),
+        reason uint8 (N,))``: ``width`` the distance between the pads once closed (m;
+        ``max_opening`` for a failure), ``object`` the id held (-1 for none), ``reason``
+        an index into ``reasons()``."""
+    @staticmethod
+    def reasons() -> list[str]:
+        """The reason codes' names, by code: success, collision, empty, two-objects,
+        not-antipodal, narrow."""
+    @property
+    def table_z(self) -> float: ...
+    @property
+    def object_count(self) -> int: ...
+    @property
+    def piece_count(self) -> int: ...
 
 def score_views(
     grid: OccupancyGrid,

@@ -23,6 +23,7 @@ from heapgrasp.robot.interfaces import Contact, Robot, UnreachableError
 
 __all__ = [
     "BIN_POSE",
+    "PREGRASP_DISTANCE",
     "CollisionStage",
     "Grasp",
     "GraspOutcome",
@@ -39,6 +40,10 @@ F64 = npt.NDArray[np.float64]
 BIN_POSE = np.array(
     [[1.0, 0.0, 0.0, 0.15], [0.0, -1.0, 0.0, -0.25], [0.0, 0.0, -1.0, 0.25], [0.0, 0.0, 0.0, 1.0]]
 )
+
+
+#: How far back along the grasp's z the pre-grasp pose is (m; VGN's 5 cm).
+PREGRASP_DISTANCE = 0.05
 
 
 def translate(x: float, y: float, z: float) -> F64:
@@ -126,7 +131,7 @@ def execute_grasp(
     robot: Robot,
     grasp: Grasp,
     *,
-    pregrasp_distance: float = 0.05,
+    pregrasp_distance: float = PREGRASP_DISTANCE,
     lift_height: float = 0.10,
     shake: bool = True,
 ) -> GraspResult:

@@ -71,7 +71,7 @@ from heapgrasp import HeapgraspError
 from heapgrasp.geometry.motion import MotionLimits, TimedPath
 from heapgrasp.robot.grasping import HandPart, translate
 from heapgrasp.robot.interfaces import UnreachableError as RobotUnreachableError
-from heapgrasp.sim.fingers import MAX_OPENING, Fingers
+from heapgrasp.sim.fingers import FINGER_FRICTION, MAX_OPENING, Fingers
 from heapgrasp.sim.gripper import TCP_OFFSET
 from heapgrasp.sim.world import SimWorld, _pose, _split_pose
 
@@ -509,7 +509,9 @@ class PandaArm(Fingers):
         )
         self._tcp2camera: FloatArray = np.asarray(np.linalg.inv(self.camera2tcp), np.float64)
         for joint in self.finger_joints:
-            pb.changeDynamics(self.body, joint, lateralFriction=1.0, physicsClientId=self.client)
+            pb.changeDynamics(
+                self.body, joint, lateralFriction=FINGER_FRICTION, physicsClientId=self.client
+            )
         # Fingers mirror each other (the URDF's mimic joint, as a gear constraint).
         gear = pb.createConstraint(
             self.body,

@@ -19,10 +19,17 @@ from heapgrasp.geometry.gripper import PANDA_HAND
 if TYPE_CHECKING:
     from heapgrasp.sim.world import SimWorld
 
-__all__ = ["MAX_OPENING", "Fingers"]
+__all__ = ["FINGER_FRICTION", "MAX_OPENING", "MIN_HELD_WIDTH", "Fingers"]
 
 #: Maximum opening of the Panda hand (m): :data:`heapgrasp.geometry.gripper.PANDA_HAND`.
 MAX_OPENING = PANDA_HAND.max_opening
+
+#: Lateral friction of the finger links (PyBullet multiplies it by the object's).
+FINGER_FRICTION = 1.0
+
+#: Below this opening (m) the fingers count as shut, holding nothing (VGN's 10 % of the
+#: widest opening, here of each finger's travel).
+MIN_HELD_WIDTH = 0.1 * MAX_OPENING * 0.5
 
 
 class Fingers:
@@ -78,7 +85,7 @@ class Fingers:
 
     def held_object(self) -> int | None:
         """World id of the object both fingers touch, if the fingers are not shut."""
-        if self.width() < 0.1 * MAX_OPENING * 0.5:
+        if self.width() < MIN_HELD_WIDTH:
             return None
         left, right = self.finger_contacts()
         both = left & right

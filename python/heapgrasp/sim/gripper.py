@@ -25,6 +25,7 @@ import pybullet as pb
 import pybullet_data
 
 from heapgrasp.robot.grasping import (
+    PREGRASP_DISTANCE,
     CollisionStage,
     Grasp,
     GraspOutcome,
@@ -33,7 +34,7 @@ from heapgrasp.robot.grasping import (
     translate,
 )
 from heapgrasp.robot.grasping import execute_grasp as robot_execute_grasp
-from heapgrasp.sim.fingers import MAX_OPENING, Fingers
+from heapgrasp.sim.fingers import FINGER_FRICTION, MAX_OPENING, Fingers
 from heapgrasp.sim.objects import default_cache_dir
 from heapgrasp.sim.robot import Robot
 from heapgrasp.sim.world import SimWorld
@@ -121,7 +122,9 @@ class PandaHand(Fingers):
         inertial = pb.getDynamicsInfo(self.body, -1, physicsClientId=self.client)[3]
         self.tcp2body = translate(0.0, 0.0, -TCP_OFFSET) @ translate(*inertial)
         for joint in (0, 1):
-            pb.changeDynamics(self.body, joint, lateralFriction=1.0, physicsClientId=self.client)
+            pb.changeDynamics(
+                self.body, joint, lateralFriction=FINGER_FRICTION, physicsClientId=self.client
+            )
         # Fingers mirror each other (the URDF's mimic joint, as a gear constraint).
         gear = pb.createConstraint(
             self.body,
@@ -229,7 +232,7 @@ def execute_grasp(
     hand: Robot,
     grasp: Grasp,
     *,
-    pregrasp_distance: float = 0.05,
+    pregrasp_distance: float = PREGRASP_DISTANCE,
     lift_height: float = 0.10,
     shake: bool = True,
 ) -> GraspResult:

@@ -1,0 +1,193 @@
+//! `GraspLabeller`.
+
+use heapgrasp_core::grasp_label::{GraspLabeller, GraspScene, HandGeometry, LabelParams};
+use numpy::PyArray1;
+use pyo3::exceptions::PyKeyError;
+use pyo3::prelude::*;
+use pyo3::types::PyMapping;
+
+use crate::convert::{
+    array_arg, check_tail, detached, float_arg, floats_arg, int_arg, items_arg, pose_arg,
+    poses_arg, type_name,
+};
+use crate::errors::{IntoPyResult, InvalidValueError};
+
+/// Most convex pieces one object may have.
+const MAX_PIECES: usize = 4096;
+
+/// Labels as NumPy arrays: success bool, width float32, object int32, reason uint8.
+type Labels<'py> = (
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray1<f32>>,
+    Bound<'py, PyArray1<i32>>,
+    Bound<'py, PyArray1<u8>>,
+);
+
+/// `hand[key]` as a number; a missing key or a non-number raises `InvalidValueError`.
+fn hand_item<'py>(d: &Bound<'py, PyMapping>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+    d.get_item(key).map_err(|e| {
+        if e.is_instance_of::<PyKeyError>(d.py()) {
+            InvalidValueError::new_err(format!("hand: missing key {key:?}"))
+        } else {
+            e
+        }
+    })
+}
+
+fn hand_arg(hand: &Bound<'_, PyAny>) -> PyResult<HandGeometry> {
+    let d = hand.cast::<PyMapping>().map_err(|_| {
+        InvalidValueError::new_err(format!(
+            "hand: expected a mapping of GripperGeometry's fields, got {}",
+            type_name(hand)
+        ))
+    })?;
+    let f = |k: &str| float_arg(&hand_item(d, k)?, &format!("hand[{k:?}]"));
+    let pair = |k: &str| floats_arg::<2>(&hand_item(d, k)?, &format!("hand[{k:?}]"));
+    Ok(HandGeometry {
+        finger_width: f("finger_width")?,
+        finger_tip: f("finger_tip")?,
+        finger_base: f("finger_base")?,
+        finger_split: f("finger_split")?,
+        tip_thickness: f("tip_thickness")?,
+        base_thickness: f("base_thickness")?,
+        palm_front: f("palm_front")?,
+        palm_split: f("palm_split")?,
+        palm_back: f("palm_back")?,
+        palm_front_half: pair("palm_front_half")?,
+        palm_back_half: pair("palm_back_half")?,
+        max_opening: f("max_opening")?,
+    })
+}
+
+/// Exact-geometry grasp labels on convex object pieces and a table.
+#[pyclass(name = "GraspLabeller", module = "heapgrasp._core")]
+pub struct PyGraspLabeller {
+    inner: GraspLabeller,
+}
+
+#[pymethods]
+impl PyGraspLabeller {
+    #[new]
+    #[pyo3(signature = (hand, *, table_z, friction, pregrasp_distance, hand_margin, object_margin, min_width))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        hand: &Bound<'_, PyAny>,
+        table_z: &Bound<'_, PyAny>,
+        friction: &Bound<'_, PyAny>,
+        pregrasp_distance: &Bound<'_, PyAny>,
+        hand_margin: &Bound<'_, PyAny>,
+        object_margin: &Bound<'_, PyAny>,
+        min_width: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        let params = LabelParams {
+            hand: hand_arg(hand)?,
+            pregrasp_distance: float_arg(pregrasp_distance, "pregrasp_distance")?,
+            friction: float_arg(friction, "friction")?,
+            hand_margin: float_arg(hand_margin, "hand_margin")?,
+            object_margin: float_arg(object_margin, "object_margin")?,
+            min_width: float_arg(min_width, "min_width")?,
+        };
+        let scene = GraspScene::new(float_arg(table_z, "table_z")?).py()?;
+        Ok(Self {
+            inner: GraspLabeller::new(scene, params).py()?,
+        })
+    }
+
+    /// Adds object `id` at `obj2world` made of `pieces`, each a `(V, 3)` float64 array
+    /// of object-frame vertices collided as its convex hull.
+    fn add_object(
+        &mut self,
+        id: &Bound<'_, PyAny>,
+        obj2world: &Bound<'_, PyAny>,
+        pieces: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let id = int_arg(
+            id,
+            "id",
+            0,
+            i64::from(i32::MAX),
+            "expected an int in [0, 2**31 - 1]",
+        )?;
+        let pose = pose_arg(obj2world, "obj2world")?;
+        let items = items_arg(
+            pieces,
+            "pieces",
+            MAX_PIECES,
+            "(V, 3) float64 arrays",
+            &format!("at most {MAX_PIECES} pieces"),
+        )?;
+        let arrays = items
+            .iter()
+            .enumerate()
+            .map(|(k, item)| {
+                let name = format!("pieces[{k}]");
+                let a = array_arg::<f64>(item, &name, "float64", Some(2))?;
+                check_tail(&name, &a.shape, &[3], "(V, 3)")?;
+                Ok(a)
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        let slices: Vec<&[f64]> = arrays.iter().map(|a| a.as_slice()).collect();
+        // `id` was range-checked by `int_arg`.
+        let id = i32::try_from(id).unwrap_or(i32::MAX);
+        self.inner.add_object(id, pose, &slices).py()
+    }
+
+    /// Labels grasps `tcp2world` (N, 4, 4) float64 on `threads` threads (0: all).
+    #[pyo3(signature = (tcp2world, *, threads = None))]
+    fn label<'py>(
+        &self,
+        py: Python<'py>,
+        tcp2world: &Bound<'py, PyAny>,
+        threads: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Labels<'py>> {
+        let threads = match threads {
+            None => 0,
+            Some(t) => int_arg(t, "threads", 0, 4096, "expected an int in [0, 4096]")? as usize,
+        };
+        let poses = poses_arg(tcp2world, "tcp2world")?;
+        let inner = &self.inner;
+        let labels = detached(py, || Ok(inner.label(&poses, threads)))?;
+        Ok((
+            PyArray1::from_vec(py, labels.iter().map(|l| l.success).collect()),
+            PyArray1::from_vec(py, labels.iter().map(|l| l.width).collect()),
+            PyArray1::from_vec(py, labels.iter().map(|l| l.object).collect()),
+            PyArray1::from_vec(py, labels.iter().map(|l| l.reason as u8).collect()),
+        ))
+    }
+
+    /// The reasons' names, indexed by their codes.
+    #[staticmethod]
+    fn reasons() -> Vec<&'static str> {
+        heapgrasp_core::grasp_label::Reason::ALL
+            .iter()
+            .map(|r| r.name())
+            .collect()
+    }
+
+    /// World z of the table's top.
+    #[getter]
+    fn table_z(&self) -> f64 {
+        self.inner.scene().table_z()
+    }
+
+    /// Number of objects.
+    #[getter]
+    fn object_count(&self) -> usize {
+        self.inner.scene().len()
+    }
+
+    /// Number of convex pieces over all objects.
+    #[getter]
+    fn piece_count(&self) -> usize {
+        self.inner.scene().piece_count()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "GraspLabeller(objects={}, pieces={}, table_z={})",
+            self.inner.scene().len(),
+            self.inner.scene().piece_count(),
+            self.inner.scene().table_z()
+        )
+    }
+}
