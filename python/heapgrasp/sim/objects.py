@@ -15,17 +15,21 @@ Object frame
 
 Collision geometry
     PyBullet treats every dynamic mesh collision shape as its convex hull. Convex-ish
-    objects (boxes, cylinders, the random_urdfs blobs, user meshes) therefore use their
-    visual mesh as the single collision mesh. Concave procedural objects (cups, bowls,
-    bottles) are decomposed procedurally into convex pieces (wall wedges, bands, a base)
-    whose union approximates the object, so a cup is hollow in the physics too.
+    objects (boxes, cylinders, the random_urdfs blobs) therefore use their visual mesh
+    as the single collision mesh. Concave procedural objects (cups, bowls, bottles) are
+    decomposed procedurally into convex pieces (wall wedges, bands, a base) whose union
+    approximates the object, so a cup is hollow in the physics too. A user object's
+    collision meshes are used as they are where convex and replaced by their convex
+    decomposition (``pybullet.vhacd``, cached by content) where concave.
 
 Sources
     * ``pybullet_data``: ``random_urdfs/NNN`` (1000 watertight ~9 cm blobs, mesh scale
       from the URDF) and ``pybullet_data/mug``.
     * ``procedural``: boxes, cylinders, bottles, bowls and cups, sized for a gripper with
       an 8 cm opening; the same seed gives byte-identical files.
-    * ``user``: ``*.obj``, ``*.stl``, ``*.ply`` and ``*.urdf`` files from a directory.
+    * ``user``: a directory of object folders (``NAME/model.urdf`` beside its meshes, the
+      YCB / Google Scanned Objects layout for PyBullet) or of ``*.obj``, ``*.stl``,
+      ``*.ply`` and ``*.urdf`` files (:func:`user_models`).
 
 Train/test splits are a stable hash of the object name (:func:`split_of`). Optical
 categories (transparent, specular, opaque) are not a property of a model: the world
@@ -35,11 +39,16 @@ assigns them per scene.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import math
 import os
+import shutil
+import sys
+import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -52,8 +61,10 @@ __all__ = [
     "DENSITY",
     "MASS_RANGE",
     "MAX_COLLISION_PIECES",
+    "OBJECT_URDF",
     "PROCEDURAL_KINDS",
     "REVOLVE_SECTIONS",
+    "VHACD_RESOLUTION",
     "ObjectLibrary",
     "ObjectModel",
     "Source",
@@ -232,6 +243,11 @@ def load_mesh(path: Path | str) -> tuple[FloatArray, IntArray]:
         mesh = trimesh.load(str(p), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for bad files
         raise ValueError(f"cannot load mesh {p}: {exc}") from exc
+    return _checked(mesh, p)
+
+
+def _checked(mesh: object, p: Path) -> tuple[FloatArray, IntArray]:
+    """:func:`load_mesh`'s checks and welding of a mesh loaded from ``p``."""
     if not isinstance(mesh, trimesh.Trimesh):
         raise ValueError(f"cannot load mesh {p}: got {type(mesh).__name__}, not a mesh")
     if len(mesh.faces) == 0 or len(mesh.vertices) == 0:
@@ -653,6 +669,8 @@ def _mesh_ref(element: ET.Element, urdf: Path, what: str) -> _MeshRef | None:
     path = Path(filename)
     if not path.is_absolute():
         path = urdf.parent / path
+    if not path.exists() and (urdf.parent / path.name).is_file():
+        path = urdf.parent / path.name  # a package:// path to a mesh beside the URDF
     scale = _floats(mesh.get("scale"), 3, 1.0, f"{urdf}: {what} mesh scale")
     if any(s == 0.0 for s in scale):
         raise ValueError(f"{urdf}: {what} mesh scale must be non-zero, got {scale}")
@@ -694,7 +712,10 @@ def _parse_urdf(urdf: Path) -> _UrdfLink:
             if mass <= 0.0:
                 mass = None
         return _UrdfLink(visual, collisions, mass)
-    raise ValueError(f"URDF {urdf} has no link with a <visual> mesh")
+    raise ValueError(
+        f"URDF {urdf} has no link with a <visual> mesh (<geometry><mesh filename=...>; "
+        "primitive shapes are not read)"
+    )
 
 
 def _origin_matrix(origin: tuple[float, ...]) -> FloatArray:
@@ -711,15 +732,26 @@ def _origin_matrix(origin: tuple[float, ...]) -> FloatArray:
     return m
 
 
-def _baked(ref: _MeshRef, extra_scale: float) -> tuple[FloatArray, IntArray]:
-    """Mesh of a URDF reference in the link frame (scale and origin applied)."""
-    v, f = load_mesh(ref.path)
+def _placed(
+    ref: _MeshRef, extra_scale: float, v: FloatArray, f: IntArray
+) -> tuple[FloatArray, IntArray]:
+    """A mesh of ``ref``'s file in the link frame (scale and origin applied)."""
     scale = np.asarray(ref.scale, dtype=np.float64) * extra_scale
     m = _origin_matrix(ref.origin)
     v = (v * scale) @ m[:3, :3].T + m[:3, 3]
     if np.prod(scale) < 0:  # mirrored: keep outward orientation
         f = f[:, ::-1].copy()
     return v, f
+
+
+def _baked(ref: _MeshRef, extra_scale: float) -> tuple[FloatArray, IntArray]:
+    """Mesh of a URDF reference in the link frame (scale and origin applied)."""
+    return _placed(ref, extra_scale, *load_mesh(ref.path))
+
+
+def _baked_parts(ref: _MeshRef, extra_scale: float) -> list[tuple[FloatArray, IntArray]]:
+    """:func:`_baked`, one mesh per part of the file (:func:`_load_parts`)."""
+    return [_placed(ref, extra_scale, v, f) for v, f in _load_parts(ref.path)]
 
 
 def _model_from_urdf(
@@ -729,27 +761,60 @@ def _model_from_urdf(
     visual_path: Path,
     collision_prefix: Path,
     test_fraction: float,
-    extra_scale: float = 1.0,
 ) -> ObjectModel:
     link = _parse_urdf(urdf)
+    return _model_from_link(
+        link, urdf.name, name, source, visual_path, collision_prefix, test_fraction
+    )
+
+
+def _model_from_link(
+    link: _UrdfLink,
+    origin: str,
+    name: str,
+    source: Source,
+    visual_path: Path,
+    collision_prefix: Path,
+    test_fraction: float,
+    extra_scale: float = 1.0,
+    convex_cache: Path | None = None,
+    max_extent: float | None = None,
+) -> ObjectModel:
+    """The model of a link: its visual mesh recentred into ``visual_path`` and its
+    collision meshes (the visual mesh when it has none) baked into
+    ``collision_prefix<k>.obj``. With ``convex_cache``, each collision mesh is split into
+    the parts of its file (an OBJ file that is already a set of convex objects) and a
+    concave one is replaced by its convex decomposition (:func:`_decomposed`, cached
+    there); without, each collides as a whole (PyBullet takes its convex hull). An
+    object larger than ``max_extent`` (m) raises ValueError, before any decomposition."""
     v, f = _baked(link.visual, extra_scale)
+    why = None if max_extent is None else _too_large(_extents(v), max_extent)
+    if why is not None:
+        raise ValueError(f"{name} {why}")
     centre = _bbox_centre(v)
     v = _round(v - centre)
-    _write_if_changed(visual_path, _obj_text(v, f, f"heapgrasp {name} visual (from {urdf.name})"))
+    _write_if_changed(visual_path, _obj_text(v, f, f"heapgrasp {name} visual (from {origin})"))
+    decompose = convex_cache is not None
     collision: list[Path] = []
-    for k, ref in enumerate(link.collisions):
-        if ref == link.visual:
+    concave: list[tuple[FloatArray, IntArray]] = []
+    k = 0
+    for ref in link.collisions or (link.visual,):
+        if ref == link.visual and (not decompose or _is_convex(v, f)):
             if visual_path not in collision:
                 collision.append(visual_path)
             continue
-        cv, cf = _baked(ref, extra_scale)
-        path = collision_prefix.with_name(f"{collision_prefix.name}{k:02d}.obj")
-        _write_if_changed(
-            path, _obj_text(_round(cv - centre), cf, f"heapgrasp {name} collision {k}")
-        )
-        collision.append(path)
-    if not collision:
-        collision.append(visual_path)
+        for cv, cf in _baked_parts(ref, extra_scale) if decompose else [_baked(ref, extra_scale)]:
+            cv = _round(cv - centre)
+            if decompose and not _is_convex(cv, cf):
+                concave.append((cv, cf))
+                continue
+            path = collision_prefix.with_name(f"{collision_prefix.name}{k:02d}.obj")
+            _write_if_changed(path, _obj_text(cv, cf, f"heapgrasp {name} collision {k}"))
+            collision.append(path)
+            k += 1
+    if concave and convex_cache is not None:
+        budget = max(1, MAX_COLLISION_PIECES - len(collision))
+        collision += _decomposed(concave, budget, convex_cache, name)
     mass = link.mass if link.mass is not None else _clamped_mass(_mesh_volume(v, f))
     return ObjectModel(
         name=name,
@@ -760,6 +825,164 @@ def _model_from_urdf(
         split=split_of(name, test_fraction),
         extents=_extents(v),
     )
+
+
+# --------------------------------------------------------------------------- convex pieces
+VHACD_RESOLUTION: int = 100_000
+"""Voxels of ``pybullet.vhacd``'s voxelisation (V-HACD's own default; PyBullet's is 10x,
+about 10x slower for the same pieces on our cups and bowls)."""
+
+
+def _is_convex(vertices: FloatArray, faces: IntArray) -> bool:
+    """Whether a mesh is convex (trimesh: closed, consistently wound, no reflex edge)."""
+    return bool(trimesh.Trimesh(vertices, faces, process=False).is_convex)
+
+
+def _load_parts(path: Path) -> list[tuple[FloatArray, IntArray]]:
+    """A collision mesh file as PyBullet's compound of it: an OBJ file whose objects
+    (``o`` groups) are each convex, e.g. a V-HACD result, is one part per object; any
+    other file is one part (:func:`load_mesh`)."""
+    whole = load_mesh(path)
+    if path.suffix.lower() != ".obj":
+        return [whole]
+    try:
+        parts = [_checked(g, path) for g in _obj_objects(path)]
+    except ValueError:
+        return [whole]
+    if len(parts) > 1 and all(_is_convex(pv, pf) for pv, pf in parts):
+        return parts
+    return [whole]
+
+
+def _obj_objects(path: Path) -> list[object]:
+    """The objects (``o`` groups) of an OBJ file, as trimesh loads them."""
+    try:
+        scene = trimesh.load(
+            str(path), force="scene", process=False, split_objects=True, group_material=False
+        )
+    except Exception as exc:  # trimesh raises many types for bad files
+        raise ValueError(f"cannot load mesh {path}: {exc}") from exc
+    if not isinstance(scene, trimesh.Scene):
+        raise ValueError(f"cannot load mesh {path}: got {type(scene).__name__}, not objects")
+    return list(scene.geometry.values())
+
+
+@contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Sends what C code prints to file descriptor 1 to /dev/null (V-HACD's progress)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+
+
+def _vhacd(vertices: FloatArray, faces: IntArray, work: Path) -> list[FloatArray]:
+    """The vertices of each convex piece of ``pybullet.vhacd``'s decomposition."""
+    import pybullet as pb
+
+    src, out, log = work / "in.obj", work / "out.obj", work / "vhacd.log"
+    src.write_text(_obj_text(vertices, faces, "heapgrasp vhacd input"))
+    with _quiet_stdout():
+        pb.vhacd(str(src), str(out), str(log), resolution=VHACD_RESOLUTION)
+    if not out.is_file():
+        return []
+    pieces = [
+        np.asarray(g.vertices, dtype=np.float64)
+        for g in _obj_objects(out)
+        if isinstance(g, trimesh.Trimesh)
+    ]
+    for p in (src, out, log):
+        p.unlink(missing_ok=True)
+    return [p for p in pieces if len(p) >= 4]
+
+
+def _hull_volume(points: FloatArray) -> float:
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return float(ConvexHull(points).volume)
+    except (QhullError, ValueError):  # flat or too few points
+        return 0.0
+
+
+def _merged(pieces: list[FloatArray], most: int) -> list[FloatArray]:
+    """At most ``most`` convex pieces: the two pieces whose hull adds the least volume
+    are merged into their hull, again and again."""
+    points = list(pieces)
+    labels = list(range(len(points)))  # a merged piece gets a new label: costs stay valid
+    fresh = itertools.count(len(points))
+    volumes = [_hull_volume(p) for p in points]
+    cost: dict[tuple[int, int], float] = {}
+    while len(points) > most:
+        best: tuple[float, int, int] | None = None
+        for i in range(len(points)):
+            for j in range(i + 1, len(points)):
+                key = (labels[i], labels[j])
+                if key not in cost:
+                    both = _hull_volume(np.vstack([points[i], points[j]]))
+                    cost[key] = both - volumes[i] - volumes[j]
+                if best is None or cost[key] < best[0]:
+                    best = (cost[key], i, j)
+        assert best is not None
+        _, i, j = best
+        joined = np.vstack([points[i], points[j]])
+        for index in (j, i):
+            del points[index], labels[index], volumes[index]
+        points.append(joined)
+        labels.append(next(fresh))
+        volumes.append(_hull_volume(joined))
+    return points
+
+
+def _decomposed(
+    parts: list[tuple[FloatArray, IntArray]], most: int, cache: Path, name: str
+) -> list[Path]:
+    """Convex pieces (at most ``most``) of concave meshes, by ``pybullet.vhacd``
+    (:data:`VHACD_RESOLUTION`), merged down to ``most`` (:func:`_merged`).
+
+    Cached by content: ``cache/<hash>/piece_<k>.obj``, the hash of the meshes (in the
+    object frame, as written), ``most``, the resolution and PyBullet's version; a second
+    load reads the files and runs nothing."""
+    from importlib.metadata import version
+
+    h = hashlib.sha256(f"vhacd|{VHACD_RESOLUTION}|{most}|{version('pybullet')}".encode())
+    for v, f in parts:
+        h.update(_obj_text(v, f, "").encode("ascii"))
+    folder = cache / h.hexdigest()[:24]
+    done = sorted(folder.glob("piece_*.obj"))
+    if done:
+        return done
+    work = cache / f".{folder.name}.{os.getpid()}.tmp"
+    work.mkdir(parents=True, exist_ok=True)
+    try:
+        pieces = [p for v, f in parts for p in _vhacd(v, f, work)]
+        if not pieces:
+            raise ValueError(
+                f"{name}: the convex decomposition (pybullet.vhacd) of its concave collision "
+                "mesh gave no pieces"
+            )
+        for k, points in enumerate(_merged(pieces, most)):
+            hull = _hull(points)
+            text = _obj_text(
+                _round(np.asarray(hull.vertices, dtype=np.float64)),
+                np.asarray(hull.faces, dtype=np.int64),
+                f"heapgrasp convex piece {k} (pybullet.vhacd)",
+            )
+            (work / f"piece_{k:02d}.obj").write_text(text)
+        try:
+            os.replace(work, folder)  # atomic: whole or absent
+        except OSError:  # another process wrote it first: the same content
+            pass
+    finally:
+        if work.exists():
+            shutil.rmtree(work, ignore_errors=True)
+    return sorted(folder.glob("piece_*.obj"))
 
 
 # --------------------------------------------------------------------------- pybullet_data
@@ -859,103 +1082,176 @@ def pybullet_data_models(
 
 
 # --------------------------------------------------------------------------- user
+OBJECT_URDF: str = "model.urdf"
+"""The URDF of an object folder of a user directory (YCB's and Google Scanned Objects'
+PyBullet layout: ``DIR/003_cracker_box/model.urdf`` beside its meshes)."""
+
+
+def _user_sources(folder: Path, on_skip: Callable[[str], None]) -> dict[str, Path]:
+    """The objects of a user directory by stem: its URDF and mesh files (a mesh that a
+    URDF of the directory references is not an object of its own) and its subfolders'
+    :data:`OBJECT_URDF` (or their only ``*.urdf``). Subfolders without one are skipped
+    and named to ``on_skip``, as are the directory's URDFs that cannot be parsed."""
+    files = sorted(p for p in folder.iterdir() if p.is_file())
+    urdfs = [p for p in files if p.suffix.lower() == ".urdf"]
+    referenced: set[Path] = set()
+    for urdf in urdfs:
+        try:
+            link = _parse_urdf(urdf)
+        except ValueError:
+            continue  # reported when the object is made
+        for ref in (link.visual, *link.collisions):
+            referenced.add(ref.path.resolve())
+    found = urdfs + [
+        p for p in files if p.suffix.lower() in _MESH_SUFFIXES and p.resolve() not in referenced
+    ]
+    sources: dict[str, Path] = {}
+    for path in sorted(found):
+        _add_source(sources, path.stem, path, folder)
+    for sub in sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".")):
+        urdf = sub / OBJECT_URDF
+        if not urdf.is_file():
+            others = sorted(sub.glob("*.urdf"))
+            if len(others) != 1:
+                what = "" if not others else f" (and {len(others)} other URDFs: which one?)"
+                on_skip(f"skipped {sub}: no {OBJECT_URDF}{what}")
+                continue
+            urdf = others[0]
+        _add_source(sources, sub.name, urdf, folder)
+    return sources
+
+
+def _add_source(sources: dict[str, Path], stem: str, path: Path, folder: Path) -> None:
+    if stem in sources:
+        raise ValueError(
+            f"user objects {sources[stem].relative_to(folder)} and {path.relative_to(folder)} "
+            f"in {folder} have the same name 'user/{stem}'; rename one"
+        )
+    sources[stem] = path
+
+
+def _too_large(extents: tuple[float, float, float], most: float) -> str | None:
+    """Why an object of these extents (m) does not fit a cube of side ``most`` (m)."""
+    if max(extents) <= most:
+        return None
+    size = " x ".join(f"{e:.3f}" for e in extents)
+    why = f"is {size} m, larger than the {most:g} m workspace cube"
+    if max(extents) > 1.0:
+        why += (
+            "; meshes are read in metres and this one looks like millimetres: give its "
+            '<mesh> elements scale="0.001 0.001 0.001" in its URDF'
+        )
+    return why
+
+
 def user_models(
     directory: Path | str,
     cache_dir: Path | str,
     *,
     scale: float = 1.0,
     test_fraction: float = 0.2,
+    max_extent: float | None = None,
+    on_skip: Callable[[str], None] | None = None,
 ) -> list[ObjectModel]:
-    """Models of the user's mesh files in a directory (not recursive).
+    """Models of the user's objects in a directory.
 
-    Every ``*.obj``, ``*.stl`` and ``*.ply`` is one object; every ``*.urdf`` is one object
-    made of the first visual mesh of its first link with a mesh (with its ``scale`` and
-    ``<origin>``), colliding with the link's collision meshes. Mesh files referenced by a
-    URDF of the directory are not added again on their own. Meshes are assumed to be in
-    metres, times ``scale``. Each mesh is recentred to its bounding-box centre and written
-    to ``cache_dir/user/<hash of directory>/<stem>/visual.obj``. Its mass is
-    :data:`DENSITY` times its volume (its convex hull's when not closed), clamped to
-    :data:`MASS_RANGE`, unless a URDF gives one. Plain meshes collide as their convex hull.
+    The directory holds objects in either (or both) of two layouts:
+
+    * a folder per object, PyBullet's (YCB, Google Scanned Objects): every subfolder
+      with a :data:`OBJECT_URDF` (or a single ``*.urdf``) is one object, named after the
+      subfolder, e.g. ``DIR/003_cracker_box/model.urdf`` is ``user/003_cracker_box``;
+    * files: every ``*.urdf`` is one object and every ``*.obj``, ``*.stl`` and ``*.ply``
+      that no URDF of the directory references is one, named after the file's stem.
+
+    A URDF object is the first visual mesh of its first link with a mesh (with its
+    ``scale`` and ``<origin>``), colliding with the link's collision meshes (its visual
+    mesh when it has none); a plain mesh file is its own visual and collision mesh.
+    Every collision mesh that is convex (trimesh) is used as it is; an OBJ file whose
+    objects are each convex (a convex decomposition) gives one piece per object; a
+    concave mesh is replaced by its convex decomposition (``pybullet.vhacd``, cached by
+    content in ``cache_dir/convex``), so that an object collides as its shape, not as
+    its convex hull; at most :data:`MAX_COLLISION_PIECES` pieces in all. Meshes are read
+    in metres, times ``scale``; each object is recentred to its bounding-box centre and
+    written to ``cache_dir/user/<hash of directory>/<stem>/``. Its mass is the URDF's,
+    else :data:`DENSITY` times its volume (its convex hull's when not closed), clamped
+    to :data:`MASS_RANGE`.
 
     Parameters
     ----------
     directory : Path or str
-        Directory of mesh / URDF files.
+        Directory of object folders and/or mesh / URDF files.
     cache_dir : Path or str
         Cache directory for the written meshes.
     scale : float
         Uniform factor applied to every mesh (e.g. 0.001 for millimetre files), > 0.
     test_fraction : float
-        Fraction of names in the test subset (see :func:`split_of`).
+        Fraction of names in the test subset (see :func:`split_of`); 1 puts every object
+        in the test subset, 0 in the train subset.
+    max_extent : float, optional
+        An object larger than this (m) along an axis is an error, e.g. the side of the
+        workspace cube.
+    on_skip : callable, optional
+        Called with a message naming each subfolder that holds no object; default
+        :func:`warnings.warn`.
 
     Returns
     -------
     list of ObjectModel
-        Named ``user/<file stem>``, sorted by file name.
+        Named ``user/<stem>``, sorted by name.
 
     Raises
     ------
     FileNotFoundError
         If ``directory`` does not exist or is not a directory.
     ValueError
-        For a bad ``scale``, two files with the same stem, or an unreadable mesh.
+        For a bad ``scale``, two objects with the same name, no object at all, or objects
+        that cannot be used (a URDF without a visual mesh, a mesh that does not load, an
+        object larger than ``max_extent``): one error naming each such object's file and
+        its problem.
     """
     folder = Path(directory)
     if not folder.is_dir():
         raise FileNotFoundError(f"user object directory not found: {folder}")
     if not (isinstance(scale, int | float) and math.isfinite(scale) and scale > 0):
         raise ValueError(f"scale must be a finite number > 0, got {scale!r}")
-    files = sorted(p for p in folder.iterdir() if p.is_file())
-    urdfs = [p for p in files if p.suffix.lower() == ".urdf"]
-    referenced: set[Path] = set()
-    for urdf in urdfs:
-        link = _parse_urdf(urdf)
-        for ref in (link.visual, *link.collisions):
-            referenced.add(ref.path.resolve())
-    meshes = [
-        p for p in files if p.suffix.lower() in _MESH_SUFFIXES and p.resolve() not in referenced
-    ]
-    stems: dict[str, Path] = {}
-    for p in sorted(urdfs + meshes):
-        if p.stem in stems:
-            raise ValueError(
-                f"user objects {stems[p.stem].name!r} and {p.name!r} in {folder} have the "
-                f"same name 'user/{p.stem}'; rename one"
-            )
-        stems[p.stem] = p
-    base = Path(cache_dir) / "user" / _stem_hash(str(folder.resolve()))
+    skip = on_skip if on_skip is not None else (lambda m: warnings.warn(m, stacklevel=3))
+    sources = _user_sources(folder, skip)
+    if not sources:
+        raise ValueError(
+            f"no objects in {folder}: expected subfolders holding a {OBJECT_URDF} (with "
+            "the meshes it names) or mesh files (.obj, .stl, .ply) and URDFs"
+        )
+    cache = Path(cache_dir)
+    base = cache / "user" / _stem_hash(str(folder.resolve()))
     models: list[ObjectModel] = []
-    for stem, path in sorted(stems.items(), key=lambda item: item[1].name):
-        name = f"user/{stem}"
-        out = base / stem
-        if path.suffix.lower() == ".urdf":
-            models.append(
-                _model_from_urdf(
-                    path,
-                    name,
-                    "user",
-                    out / "visual.obj",
-                    out / "collision_",
-                    test_fraction,
-                    extra_scale=float(scale),
-                )
+    problems: list[str] = []
+    for stem, path in sorted(sources.items()):
+        name, out = f"user/{stem}", base / stem
+        try:
+            if path.suffix.lower() == ".urdf":
+                link = _parse_urdf(path)
+            else:  # a plain mesh: its own visual and collision mesh
+                link = _UrdfLink(_MeshRef(path, (1.0, 1.0, 1.0), (0.0,) * 6), (), None)
+            model = _model_from_link(
+                link,
+                path.name,
+                name,
+                "user",
+                out / "visual.obj",
+                out / "collision_",
+                test_fraction,
+                float(scale),
+                cache / "convex",
+                max_extent,
             )
+        except (ValueError, OSError) as exc:
+            problems.append(f"{path.relative_to(folder)}: {exc}")
             continue
-        v, f = load_mesh(path)
-        v = v * float(scale)
-        v = _round(v - _bbox_centre(v))
-        visual_path = out / "visual.obj"
-        _write_if_changed(visual_path, _obj_text(v, f, f"heapgrasp {name} (from {path.name})"))
-        models.append(
-            ObjectModel(
-                name=name,
-                source="user",
-                visual_mesh=visual_path,
-                collision_meshes=(visual_path,),
-                mass=_clamped_mass(_mesh_volume(v, f)),
-                split=split_of(name, test_fraction),
-                extents=_extents(v),
-            )
+        models.append(model)
+    if problems:
+        raise ValueError(
+            f"{len(problems)} of the {len(sources)} objects in {folder} cannot be used:\n  "
+            + "\n  ".join(problems)
         )
     return models
 
@@ -1095,12 +1391,13 @@ class ObjectLibrary:
         return [pool[i] for i in picks]
 
     def add_user_directory(self, path: Path | str, scale: float = 1.0) -> list[ObjectModel]:
-        """Adds the meshes of a user directory (see :func:`user_models`).
+        """Adds the objects of a user directory (see :func:`user_models`).
 
         Parameters
         ----------
         path : Path or str
-            Directory of ``*.obj`` / ``*.stl`` / ``*.ply`` / ``*.urdf`` files.
+            Directory of object folders (``NAME/model.urdf``) and/or ``*.obj`` / ``*.stl``
+            / ``*.ply`` / ``*.urdf`` files.
         scale : float
             Factor from file units to metres.
 
