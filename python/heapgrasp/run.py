@@ -94,13 +94,19 @@ def preflight(config: RunConfig, *, viz: bool = False) -> None:
     the networks, rerun-sdk for ``viz``) or a bad weights file is one clear error, not a
     failed record per scene."""
     from heapgrasp.loop.phase import make_critic, make_grasp_planner, make_view_scorer
-    from heapgrasp.sim.build import table_capacity
+    from heapgrasp.sim.build import object_library, table_capacity
 
-    capacity = table_capacity(config)
+    library = object_library(config, on_skip=_warn)
+    capacity = table_capacity(config, library)
     if config.objects > capacity:
+        which = (
+            f"the {config.split} split's objects"
+            if config.object_dir is None
+            else f"the objects of {config.object_dir}"
+        )
         raise ConfigError(
             f"objects: {config.objects} cannot be placed: the {config.cube_size} m table holds "
-            f"at most {capacity} of the {config.split} split's objects side by side"
+            f"at most {capacity} of {which} side by side"
         )
     make_grasp_planner(config)
     make_view_scorer(config)
@@ -109,6 +115,10 @@ def preflight(config: RunConfig, *, viz: bool = False) -> None:
         from heapgrasp.viz.recorder import import_rerun
 
         import_rerun()
+
+
+def _warn(message: str) -> None:
+    print(f"heapgrasp: warning: {message}", file=sys.stderr)
 
 
 def run_scene(
@@ -241,6 +251,11 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         "grasp_success_ci95": [100 * x for x in success_interval(k, n)] if n else None,
         "per_scene_group": per_group,
         "scenes_completed": len(done),
+        # the objects the scenes were drawn from (RunConfig.object_dir) and those placed
+        "object_dir": config.object_dir,
+        "objects_used": sorted(
+            {o["name"] for r in done for o in r.get("world", {}).get("objects", [])}
+        ),
         # objects asked for and placed (a pile may drop some off the table)
         "objects_requested": sum(int(r.get("objects_requested", config.objects)) for r in done),
         "scenes_failed": [{"scene": r["scene"], "error": r["error"]} for r in failed],

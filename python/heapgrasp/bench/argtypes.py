@@ -1,13 +1,15 @@
-"""Argument types of the ``heapgrasp bench`` commands: numbers checked against a range,
-refused with a message that names the bad value (argparse turns it into exit status 2)."""
+"""Argument types of the ``heapgrasp bench`` commands (and ``heapgrasp run``): numbers
+checked against a range, refused with a message that names the bad value (argparse
+turns it into exit status 2); the user's object directory."""
 
 from __future__ import annotations
 
 import argparse
 import math
 from collections.abc import Callable
+from pathlib import Path
 
-__all__ = ["comma_choices", "float_in", "int_at_least"]
+__all__ = ["OBJECT_DIR_HELP", "comma_choices", "float_in", "int_at_least", "object_dir"]
 
 
 def int_at_least(lo: int) -> Callable[[str], int]:
@@ -63,3 +65,21 @@ def comma_choices(what: str, allowed: tuple[str, ...]) -> Callable[[str], tuple[
 
     parse.__name__ = f"{what} list"
     return parse
+
+
+#: ``--object-dir``'s help (``heapgrasp run``, ``heapgrasp bench sim``).
+OBJECT_DIR_HELP = (
+    "your own objects: each subfolder of DIR is a PyBullet object (model.urdf with its "
+    "visual and collision meshes, in metres, e.g. YCB or Google Scanned Objects: "
+    "DIR/003_cracker_box/model.urdf), or DIR holds mesh/URDF files; a concave collision "
+    "mesh collides as its convex decomposition (cached), and the optical categories are "
+    "drawn per scene group as for our objects. Scenes are drawn from these objects only, "
+    "all of them treated as the evaluated split (object_set and the train/test split do "
+    "not apply)"
+)
+
+
+def object_dir(text: str) -> str:
+    """``--object-dir``: the directory as an absolute path, so that a resumed run finds it
+    from anywhere (what it holds is checked before any scene runs)."""
+    return str(Path(text).expanduser().absolute())

@@ -24,6 +24,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from heapgrasp.bench.argtypes import OBJECT_DIR_HELP, object_dir
 from heapgrasp.loop.config import METHODS, ConfigError, ConfigFile, RunConfig, presets
 from heapgrasp.loop.stats import format_interval, methods_differences, success_interval
 
@@ -77,6 +78,7 @@ def add_parser(
     p.add_argument("--objects", type=int, default=5, help="objects per scene")
     p.add_argument("--seed", type=int, default=0, help="seed of scene 0")
     p.add_argument("--layout", choices=("pile", "packed"), default="pile")
+    p.add_argument("--object-dir", metavar="DIR", type=object_dir, help=OBJECT_DIR_HELP)
     p.add_argument(
         "--config",
         metavar="FILE|PRESET",
@@ -115,6 +117,7 @@ def _configs(
     loaded = ConfigFile.load(args.config) if args.config is not None else None
     flags = {"scenes": args.scenes, "objects": args.objects, "seed": args.seed}
     flags["layout"] = args.layout
+    flags["object_dir"] = args.object_dir
     sets = parse_sets(args.set)
     per_method = {m: compose(loaded, flags, sets, m) for m in methods if m in METHODS}
     return compose(loaded, flags, sets), per_method
@@ -211,6 +214,11 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
     lines = [
         f"# heapgrasp bench sim — {base.scenes} scenes × {base.objects} objects ({base.layout})",
         "",
+        *(
+            []
+            if base.object_dir is None
+            else [f"Objects: the user's, from `{base.object_dir}`.", ""]
+        ),
         "Overall (Table II shape). Paper columns: HEAPGrasp Table II (simulation, ideal depth "
         "and masks); ours: the simulated depth sensor of `docs/simulation.md` unless "
         "`ideal_depth = true`.",

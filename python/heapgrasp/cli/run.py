@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+from heapgrasp.bench.argtypes import OBJECT_DIR_HELP, object_dir
 from heapgrasp.loop.config import (
     CATEGORIES,
     GRASP_PLANNERS,
@@ -44,6 +45,7 @@ _FLAGS = {
     "seed": "seed",
     "noise": "noise",
     "mount": "mount",
+    "object_dir": "object_dir",
 }
 
 
@@ -90,6 +92,7 @@ def add_parser(
     p.add_argument("--seed", type=int, help="seed of scene 0; scene i uses seed + i (default 0)")
     p.add_argument("--noise", type=float, help="mask pixel-flip probability (Table V; default 0)")
     p.add_argument("--mount", choices=MOUNTS, help="free-flying hand (default) or Panda arm")
+    p.add_argument("--object-dir", metavar="DIR", type=object_dir, help=OBJECT_DIR_HELP)
     p.add_argument(
         "--config",
         metavar="FILE|PRESET",

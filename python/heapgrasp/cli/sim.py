@@ -74,7 +74,8 @@ def add_parser(
         "--user-objects",
         type=Path,
         default=None,
-        help="directory of extra meshes (OBJ/STL/URDF, metres)",
+        help="directory of extra objects: subfolders NAME/model.urdf (YCB's layout) or "
+        "OBJ/STL/PLY/URDF files, metres",
     )
     c.add_argument("--no-rgb", action="store_true", help="skip PyBullet RGB rendering (faster)")
     c.add_argument(

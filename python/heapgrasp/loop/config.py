@@ -143,6 +143,11 @@ class RunConfig:
     object_set: str = _run("procedural", "ours")
     """``procedural``: boxes, cylinders, bottles, cups and bowls sized for the 8 cm
     gripper (the benchmark's set); ``all``: also pybullet_data's random_urdfs and the mug."""
+    object_dir: str | None = _run(None, "ours")
+    """The user's objects instead of ``object_set``: a directory whose subfolders each hold
+    a PyBullet object (``model.urdf`` and its meshes, in metres), or of mesh / URDF files
+    (:func:`heapgrasp.sim.objects.user_models`). Scenes draw from these objects only, every
+    one of them in ``split``."""
     mount: str = _run("free", "VGN")
     """``free`` (free-flying camera and hand, VGN's simulation) or ``arm`` (Panda arm,
     hand-eye camera)."""
@@ -253,6 +258,10 @@ class RunConfig:
         choice("category", CATEGORIES)
         choice("split", ("train", "test"))
         choice("object_set", OBJECT_SETS)
+        if self.object_dir is not None and not (
+            isinstance(self.object_dir, str) and self.object_dir.strip()
+        ):
+            raise ConfigError(f"object_dir: must be a directory path; got {self.object_dir!r}")
         choice("mount", MOUNTS)
         if self.start not in STARTS:
             raise ConfigError(f"start: must be one of {', '.join(STARTS)}; got {self.start!r}")

@@ -4,17 +4,18 @@ loop's pipeline on them."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 from heapgrasp.geometry.camera import CameraSpec
-from heapgrasp.loop.config import RunConfig
+from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.observe import PhaseObserver
 from heapgrasp.loop.phase import Pipeline, build_pipeline, make_segmenter
 from heapgrasp.planning.critic import GraspCritic
 from heapgrasp.planning.views import ViewScorer
 from heapgrasp.planning.volumes import GraspPlanner
-from heapgrasp.sim.objects import ObjectLibrary
+from heapgrasp.sim.objects import ObjectLibrary, ObjectModel, default_cache_dir, user_models
 from heapgrasp.sim.optics import DepthModel
 from heapgrasp.sim.robot import Robot, SimCamera, SimRobot
 from heapgrasp.sim.truth import SimTruth
@@ -30,11 +31,53 @@ __all__ = [
 ]
 
 
-def object_library(config: RunConfig) -> ObjectLibrary:
-    """The object library of ``config.object_set`` (generated once into the cache)."""
+def object_library(
+    config: RunConfig, *, on_skip: Callable[[str], None] | None = None
+) -> ObjectLibrary:
+    """The object library of ``config.object_set`` (generated once into the cache), or the
+    user's objects in ``config.object_dir``, all of them in ``config.split``
+    (:func:`~heapgrasp.sim.objects.user_models`; ``on_skip`` is told of each subfolder
+    that holds no object, default: nothing is said).
+
+    Raises
+    ------
+    ConfigError
+        Naming the directory, or each object file and its problem, when
+        ``config.object_dir`` is missing, holds no object, or holds objects that cannot be
+        used (no visual mesh, a mesh that does not load, larger than the workspace cube).
+    """
+    if config.object_dir is not None:
+        try:
+            return ObjectLibrary(_user_objects(config, on_skip or (lambda message: None)))
+        except (OSError, ValueError) as exc:
+            raise ConfigError(f"object_dir: {exc}") from None
     if config.object_set == "procedural":
         return ObjectLibrary.default(random_urdfs=0, mug=False, procedural_per_kind=16)
     return ObjectLibrary.default()
+
+
+#: The user's objects this process has loaded, by directory, cache, split, cube and the
+#: directory's files (path, size, modification time): every scene of a run builds its
+#: library, and reading a few dozen scanned meshes again would take seconds each time.
+_USER_OBJECTS: dict[tuple[object, ...], list[ObjectModel]] = {}
+
+
+def _user_objects(config: RunConfig, on_skip: Callable[[str], None]) -> list[ObjectModel]:
+    folder = Path(str(config.object_dir))
+    files = sorted(p for p in folder.rglob("*") if p.is_file()) if folder.is_dir() else []
+    stats = [(str(p), p.stat().st_size, p.stat().st_mtime_ns) for p in files]
+    cache = default_cache_dir()
+    key = (str(folder.absolute()), str(cache), config.split, config.cube_size, tuple(stats))
+    if key not in _USER_OBJECTS:
+        _USER_OBJECTS.clear()  # one run, one directory: keep the latest only
+        _USER_OBJECTS[key] = user_models(
+            folder,
+            cache,
+            test_fraction=1.0 if config.split == "test" else 0.0,
+            max_extent=config.cube_size,
+            on_skip=on_skip,
+        )
+    return _USER_OBJECTS[key]
 
 
 def table_capacity(config: RunConfig, library: ObjectLibrary | None = None) -> int:
