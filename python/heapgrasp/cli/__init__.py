@@ -10,6 +10,7 @@ parsed :class:`argparse.Namespace` and returning the exit status::
     heapgrasp sim capture                    frames of a seeded scene
     heapgrasp critic data|train|eval         the learned grasp critic
     heapgrasp data views                     the view network's dataset (Algorithm 1)
+    heapgrasp data grasps                    the grasp network's dataset (VGN's scheme)
     heapgrasp train views DATA_DIR ...       the view network trained on that dataset
 """
 

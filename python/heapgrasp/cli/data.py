@@ -1,6 +1,6 @@
-"""``heapgrasp data views``: the view network's dataset (HEAPGrasp Algorithm 1).
+"""``heapgrasp data``: the learned planners' datasets.
 
-::
+``heapgrasp data views``: the view network's (HEAPGrasp Algorithm 1)::
 
     heapgrasp data views runs/views-train --scenes 6000 --split train
     heapgrasp data views runs/views-val --scenes 600 --split val --seed 1
@@ -8,9 +8,21 @@
 
 Every scene is a fresh pile or packed scene of 1 to N_ob objects, captured along
 k ~ U{0..L−1} random view waypoints, and labelled with the exact eq. 14 score of all
-U × V candidates (:mod:`heapgrasp.data.views`). Shards are written whole or not at all;
-running the same command again continues where it stopped (finished shards are kept)
-and adding scenes (a larger ``--scenes``) adds shards. Scenes run on a process pool
+U × V candidates (:mod:`heapgrasp.data.views`).
+
+``heapgrasp data grasps``: the grasp network's (VGN's scheme)::
+
+    heapgrasp data grasps runs/grasps-train --scenes 4000 --split train
+    heapgrasp data grasps runs/grasps-val --scenes 400 --split val --seed 1
+
+Every scene is a fresh pile or packed scene of Poisson(4) + 1 objects (at most N_ob):
+the grid the loop feeds the grasp network (Ŝ≥λ after Algorithm 1's random view
+waypoints or no-vp's circle, and the VGN baseline's TSDF), and VGN's grasps labelled on
+the exact geometry, balanced (:mod:`heapgrasp.data.grasps`).
+
+Shards are written whole or not at all; running the same command again continues where
+it stopped (finished shards are kept) and adding scenes (a larger ``--scenes``) adds
+shards; other settings than the dataset's are refused. Scenes run on a process pool
 (``--workers``, default: every core) or on Ray (``--ray`` starts a local cluster,
 ``--ray ADDRESS`` joins one).
 """
@@ -22,31 +34,32 @@ import json
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 from heapgrasp.bench.argtypes import float_in, int_at_least
 
 __all__ = ["add_parser"]
 
 
-def _views(args: argparse.Namespace) -> int:
-    from heapgrasp.data.views import ShardFailure, ViewDataConfig, generate
+def _generate(args: argparse.Namespace, dataset: str, **settings: Any) -> int:
+    """Generates the dataset (``views`` or ``grasps``) the options ask for."""
+    from heapgrasp.data.grasps import GraspDataConfig
+    from heapgrasp.data.shards import ShardFailure, generate
+    from heapgrasp.data.views import ViewDataConfig
 
-    config = ViewDataConfig(
+    kind = {"views": ViewDataConfig, "grasps": GraspDataConfig}[dataset]
+    config = kind(
         scenes=args.scenes,
         root_seed=args.seed,
         split=args.split,
         shard_size=args.shard_size,
         max_objects=args.max_objects,
-        region_fraction=args.region_fraction,
+        **settings,
     )
     out = Path(args.out)
     try:
         manifest = generate(
-            config,
-            out,
-            workers=args.workers,
-            ray_address=args.ray,
-            progress=not args.quiet,
+            config, out, workers=args.workers, ray_address=args.ray, progress=not args.quiet
         )
     except ShardFailure as exc:
         print(
@@ -57,28 +70,37 @@ def _views(args: argparse.Namespace) -> int:
     except ImportError as exc:  # --ray without Ray
         print(f"heapgrasp: error: {exc}", file=sys.stderr)
         return 2
-    summary = {k: manifest[k] for k in ("split", "samples", "dropped", "complete")}
-    print(json.dumps({"out": str(out), **summary}))
+    keys = ("split", "samples", "dropped", "grasps", "complete")
+    print(json.dumps({"out": str(out), **{k: manifest[k] for k in keys if k in manifest}}))
     return 0
 
 
-def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Adds ``data`` and its subcommands."""
-    group = commands.add_parser(
-        "data",
-        help="generate the networks' datasets",
-        description="Generate the learned planners' datasets (sharded, resumable).",
-    )
-    sub = group.add_subparsers(dest="data_command", metavar="DATASET", required=True)
+def _views(args: argparse.Namespace) -> int:
+    return _generate(args, "views", region_fraction=args.region_fraction)
+
+
+def _grasps(args: argparse.Namespace) -> int:
+    return _generate(args, "grasps")
+
+
+def _dataset_parser(
+    sub: argparse._SubParsersAction[argparse.ArgumentParser],
+    name: str,
+    help: str,
+    *,
+    scenes: int,
+    shard_size: int,
+) -> argparse.ArgumentParser:
+    """A ``data`` subcommand with the options every dataset has."""
     p = sub.add_parser(
-        "views",
-        help="view-network data: Algorithm 1 with exact eq. 14 labels",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        name, help=help, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     p.add_argument("out", metavar="OUT", help="dataset directory (created; resumed if present)")
     p.add_argument(
-        "--scenes", type=int_at_least(1), default=1000, help="scenes to run (default 1000)"
+        "--scenes",
+        type=int_at_least(1),
+        default=scenes,
+        help=f"scenes to run (default {scenes})",
     )
     p.add_argument(
         "--seed", type=int_at_least(0), default=0, help="root seed of every scene (default 0)"
@@ -91,16 +113,13 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "benchmark's held-out objects, for measuring only); default train",
     )
     p.add_argument(
-        "--shard-size", type=int_at_least(1), default=50, help="scenes per shard (default 50)"
+        "--shard-size",
+        type=int_at_least(1),
+        default=shard_size,
+        help=f"scenes per shard (default {shard_size})",
     )
     p.add_argument(
         "--max-objects", type=int_at_least(1), default=5, help="N_ob (Table I; default 5)"
-    )
-    p.add_argument(
-        "--region-fraction",
-        type=float_in(0.0, 1.0),
-        default=0.5,
-        help="share of k >= 1 samples labelled on a target's column (default 0.5)",
     )
     p.add_argument(
         "--workers",
@@ -118,4 +137,36 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "(needs pip install 'heapgrasp[ray]')",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Adds ``data`` and its subcommands."""
+    group = commands.add_parser(
+        "data",
+        help="generate the networks' datasets",
+        description="Generate the learned planners' datasets (sharded, resumable).",
+    )
+    sub = group.add_subparsers(dest="data_command", metavar="DATASET", required=True)
+    p = _dataset_parser(
+        sub,
+        "views",
+        "view-network data: Algorithm 1 with exact eq. 14 labels",
+        scenes=1000,
+        shard_size=50,
+    )
+    p.add_argument(
+        "--region-fraction",
+        type=float_in(0.0, 1.0),
+        default=0.5,
+        help="share of k >= 1 samples labelled on a target's column (default 0.5)",
+    )
     p.set_defaults(func=_views)
+    p = _dataset_parser(
+        sub,
+        "grasps",
+        "grasp-network data: VGN's grasps on the loop's grids, exact-geometry labels",
+        scenes=1000,
+        shard_size=25,
+    )
+    p.set_defaults(func=_grasps)

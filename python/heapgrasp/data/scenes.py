@@ -9,7 +9,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["VAL_FRACTION", "capture_random_views", "object_split", "run_config", "split_models"]
+__all__ = [
+    "VAL_FRACTION",
+    "capture_random_views",
+    "dataset_objects",
+    "object_split",
+    "run_config",
+    "split_models",
+]
 
 F64 = npt.NDArray[np.float64]
 
@@ -36,6 +43,14 @@ def split_models(library: Any, split: str) -> list[Any]:
     if not models:
         raise ValueError(f"the object library has no {split!r} objects")
     return models
+
+
+def dataset_objects(split: str) -> list[str]:
+    """The names of the objects of the dataset split ``split``, sorted."""
+    from heapgrasp.loop.config import RunConfig
+    from heapgrasp.sim.build import object_library
+
+    return sorted(m.name for m in split_models(object_library(RunConfig()), split))
 
 
 def run_config(split: str, start: str, L: int, method: str = "heapgrasp") -> Any:

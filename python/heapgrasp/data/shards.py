@@ -15,9 +15,9 @@ that survives a dead worker, or Ray, and keeps the manifest up to date. A datase
 settings (:meth:`ShardedConfig.identity`) must match to add shards to it.
 
 Each dataset module (:mod:`heapgrasp.data.views`, :mod:`heapgrasp.data.grasps`) gives
-its config (a :class:`ShardedConfig`) and a :class:`DatasetSpec`: its format name, its
-module-level ``write_shard(config, shard, out)`` (which runs the shard's scenes and calls
-:func:`save_shard`) and what its manifest records.
+its config, a :class:`ShardedConfig` that runs a shard's scenes
+(:meth:`ShardedConfig.run_shard`) and names its :class:`DatasetSpec` (the format and
+what the manifest records).
 """
 
 from __future__ import annotations
@@ -34,9 +34,9 @@ import zipfile
 from collections.abc import Callable, Mapping
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -47,18 +47,37 @@ __all__ = [
     "ShardedConfig",
     "generate",
     "read_manifest",
+    "run_scenes",
     "save_shard",
     "shard_path",
+    "write_shard",
 ]
 
 SPLITS = ("train", "val", "test")
 
-WriteShard = Callable[[Any, int, str], tuple[int, int, int]]
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """What a dataset's manifest says of it beyond its config."""
+
+    format: str
+    """The manifest's ``format``."""
+    version: int
+    name: str
+    """What it is, for messages (``view dataset``)."""
+    settings: Callable[[], dict[str, Any]]
+    """The loop's settings the samples were made with (recorded in the manifest)."""
+    counts: Mapping[str, str] = field(default_factory=dict)
+    """Per-shard counts recorded in the manifest and summed: ``{name: array}``, the
+    count is the array's length."""
 
 
 @dataclass(frozen=True)
 class ShardedConfig:
-    """The settings every dataset has; a dataset's config adds its own fields."""
+    """The settings every dataset has; a dataset's config adds its own fields, its
+    :attr:`spec` and :meth:`run_shard`."""
+
+    spec: ClassVar[DatasetSpec]
 
     scenes: int = 1000
     """Scenes to run (each gives at most one sample)."""
@@ -101,25 +120,10 @@ class ShardedConfig:
         d.pop("scenes")
         return d
 
-
-@dataclass(frozen=True)
-class DatasetSpec:
-    """What :func:`generate` needs to know of a dataset."""
-
-    format: str
-    """The manifest's ``format``."""
-    version: int
-    name: str
-    """What it is, for messages (``view dataset``)."""
-    write_shard: WriteShard
-    """Module-level (picklable) ``write_shard(config, shard, out) -> (shard, samples,
-    dropped)``: runs the shard and writes it with :func:`save_shard`."""
-    objects: Callable[[Any], list[str]]
-    """The names of the objects the config's scenes draw from."""
-    settings: Callable[[], dict[str, Any]]
-    """The loop's settings the samples were made with (recorded in the manifest)."""
-    counts: tuple[str, ...] = ()
-    """Per-shard counts recorded in the manifest and summed: ``len`` of these arrays."""
+    def run_shard(self, shard: int) -> dict[str, Any]:
+        """The arrays of ``shard`` (its scenes run in this process), with the sample
+        axis's ``k`` and the counts ``scenes`` and ``dropped``."""
+        raise NotImplementedError
 
 
 class ShardFailure(RuntimeError):
@@ -156,6 +160,26 @@ def save_shard(out: str, shard: int, data: Mapping[str, Any]) -> tuple[int, int,
     return shard, len(data["k"]), int(data["dropped"])
 
 
+def run_scenes(
+    config: ShardedConfig, shard: int, sample: Callable[[Any, int, Any], dict[str, Any] | None]
+) -> tuple[list[dict[str, Any]], range]:
+    """``sample(config, index, library)`` of every scene of ``shard`` in this process
+    (one object library for all); the samples made (None: dropped) and the scenes."""
+    from heapgrasp.loop.config import RunConfig
+    from heapgrasp.sim.build import object_library
+
+    library = object_library(RunConfig())
+    scenes = config.shard_scenes(shard)
+    samples = [s for s in (sample(config, index, library) for index in scenes) if s is not None]
+    return samples, scenes
+
+
+def write_shard(config: ShardedConfig, shard: int, out: str) -> tuple[int, int, int]:
+    """Runs and writes ``shard`` (:func:`save_shard`); returns ``(shard, samples,
+    dropped)``. Idempotent: the same bytes on every run."""
+    return save_shard(out, shard, config.run_shard(shard))
+
+
 def _init_worker() -> None:
     os.environ["HEAPGRASP_NUM_THREADS"] = "1"
 
@@ -184,7 +208,7 @@ def _shard_entry(path: Path, spec: DatasetSpec) -> dict[str, Any]:
             "scenes": int(data["scenes"]),
             "dropped": int(data["dropped"]),
         }
-        entry.update({key: len(data[key]) for key in spec.counts})
+        entry.update({name: len(data[key]) for name, key in spec.counts.items()})
     entry["bytes"] = path.stat().st_size
     return entry
 
@@ -240,7 +264,6 @@ def _check_compatible(out: Path, spec: DatasetSpec, config: ShardedConfig) -> No
 
 
 def generate(
-    spec: DatasetSpec,
     config: ShardedConfig,
     out: Path,
     *,
@@ -259,12 +282,15 @@ def generate(
     """
     from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
+    from heapgrasp.data.scenes import dataset_objects
+
+    spec = config.spec
     started = time.monotonic()
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     out.mkdir(parents=True, exist_ok=True)
     _check_compatible(out, spec, config)
-    objects = spec.objects(config)
+    objects = dataset_objects(config.split)
     todo = [s for s in range(config.shards) if not shard_path(out, s).exists()]
     _write_manifest(out, spec, config, objects, started)
     bar = tqdm(
@@ -280,13 +306,13 @@ def generate(
         bar.update(len(config.shard_scenes(shard)))
         _write_manifest(out, spec, config, objects, started)
 
-    run = _Run(spec.write_shard, config, str(out), done, failures)
+    run = _Run(config, str(out), done, failures)
     if ray_address is not None:
         run.ray(todo, ray_address)
     elif workers == 1:
         for shard in todo:
             try:
-                spec.write_shard(config, shard, str(out))
+                write_shard(config, shard, str(out))
             except Exception as exc:  # reported with its shard; the others go on
                 failures[shard] = f"{type(exc).__name__}: {exc}"
                 continue
@@ -304,7 +330,6 @@ def generate(
 class _Run:
     """The shards of one :func:`generate` call on many processes."""
 
-    write_shard: WriteShard
     config: ShardedConfig
     out: str
     done: Callable[[int], None]
@@ -317,7 +342,7 @@ class _Run:
         written."""
         crashed: list[int] = []
         with ProcessPoolExecutor(min(workers, len(todo)), initializer=_init_worker) as pool:
-            futures = {pool.submit(self.write_shard, self.config, s, self.out): s for s in todo}
+            futures = {pool.submit(write_shard, self.config, s, self.out): s for s in todo}
             remaining = set(futures)
             while remaining:
                 finished, remaining = wait(remaining, return_when=FIRST_COMPLETED)
@@ -335,7 +360,7 @@ class _Run:
         for shard in sorted(crashed):
             with ProcessPoolExecutor(1, initializer=_init_worker) as single:
                 try:
-                    single.submit(self.write_shard, self.config, shard, self.out).result()
+                    single.submit(write_shard, self.config, shard, self.out).result()
                 except BrokenProcessPool:
                     self.failures[shard] = "the worker process died (a native crash)"
                     continue
@@ -358,7 +383,7 @@ class _Run:
         else:
             ray.init(address=address, runtime_env=env)
         try:
-            task = ray.remote(max_retries=2, num_cpus=1)(self.write_shard)
+            task = ray.remote(max_retries=2, num_cpus=1)(write_shard)
             refs = {task.remote(self.config, s, self.out): s for s in todo}
             remaining = list(refs)
             while remaining:

@@ -45,7 +45,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -62,10 +62,11 @@ from heapgrasp.data.shards import (
     DatasetSpec,
     ShardedConfig,
     ShardFailure,
-    save_shard,
+    generate,
+    run_scenes,
     shard_path,
+    write_shard,
 )
-from heapgrasp.data.shards import generate as _generate
 from heapgrasp.data.shards import read_manifest as _read_manifest
 
 __all__ = [
@@ -91,6 +92,18 @@ VERSION = 1
 _COUNT_MAX = np.iinfo(np.uint16).max
 
 
+def _settings() -> dict[str, Any]:
+    from heapgrasp.loop.config import RunConfig
+
+    run = RunConfig()
+    names = ("resolution", "U", "V", "lam", "cube_size", "radius", "theta_max", "fps")
+    return {name: getattr(run, name) for name in names}
+
+
+SPEC = DatasetSpec(FORMAT, VERSION, "view dataset", _settings)
+"""What the manifest says of the view dataset."""
+
+
 @dataclass(frozen=True)
 class ViewDataConfig(ShardedConfig):
     """What :func:`generate` makes. The defaults are Algorithm 1 with Table I's values."""
@@ -106,6 +119,8 @@ class ViewDataConfig(ShardedConfig):
     frames_per_candidate: int = 10
     """Silhouettes per hypothetical trajectory (the oracle's)."""
 
+    spec: ClassVar[DatasetSpec] = SPEC
+
     def __post_init__(self) -> None:
         super().__post_init__()
         self.positive("max_objects", "L", "frames_per_candidate")
@@ -113,6 +128,10 @@ class ViewDataConfig(ShardedConfig):
             raise ValueError(f"region_fraction must be in [0, 1], got {self.region_fraction!r}")
         if not (math.isfinite(self.target_radius) and self.target_radius > 0.0):
             raise ValueError(f"target_radius must be > 0, got {self.target_radius!r}")
+
+    def run_shard(self, shard: int) -> dict[str, Any]:
+        """Arrays of ``shard`` (:func:`shard_samples`)."""
+        return shard_samples(self, shard)
 
 
 # --------------------------------------------------------------------------- one scene
@@ -209,16 +228,7 @@ def scene_sample(config: ViewDataConfig, index: int, library: Any = None) -> dic
 
 def shard_samples(config: ViewDataConfig, shard: int) -> dict[str, Any]:
     """Arrays of ``shard`` (every scene of it run in this process)."""
-    from heapgrasp.loop.config import RunConfig
-    from heapgrasp.sim.build import object_library
-
-    library = object_library(RunConfig())
-    samples = []
-    scenes = config.shard_scenes(shard)
-    for index in scenes:
-        sample = scene_sample(config, index, library)
-        if sample is not None:
-            samples.append(sample)
+    samples, scenes = run_scenes(config, shard, scene_sample)
     keys = ("segmented", "visible", "region", "scores", "current", "target")
     ints = ("scene_seed", "scene_index", "k")
     data: dict[str, Any] = {}
@@ -231,49 +241,6 @@ def shard_samples(config: ViewDataConfig, shard: int) -> dict[str, Any]:
     return data
 
 
-def write_shard(config: ViewDataConfig, shard: int, out: str) -> tuple[int, int, int]:
-    """Runs and writes ``shard`` (atomically: a temporary file renamed); returns
-    ``(shard, samples, dropped)``. Idempotent: the same bytes on every run."""
-    return save_shard(out, shard, shard_samples(config, shard))
-
-
-# --------------------------------------------------------------------------- dataset
-
-
-def _objects(config: ViewDataConfig) -> list[str]:
-    from heapgrasp.sim.build import object_library
-
-    library = object_library(run_config(config.split, "side", config.L))
-    return sorted(m.name for m in split_models(library, config.split))
-
-
-def _settings() -> dict[str, Any]:
-    from heapgrasp.loop.config import RunConfig
-
-    run = RunConfig()
-    names = ("resolution", "U", "V", "lam", "cube_size", "radius", "theta_max", "fps")
-    return {name: getattr(run, name) for name in names}
-
-
-SPEC = DatasetSpec(FORMAT, VERSION, "view dataset", write_shard, _objects, _settings)
-"""The view dataset for :mod:`heapgrasp.data.shards`."""
-
-
 def read_manifest(out: Path) -> dict[str, Any]:
     """The dataset's ``manifest.json``; ValueError naming the file when it is not one."""
     return _read_manifest(out, SPEC)
-
-
-def generate(
-    config: ViewDataConfig,
-    out: Path,
-    *,
-    workers: int = 1,
-    ray_address: str | None = None,
-    progress: bool = True,
-) -> dict[str, Any]:
-    """Writes every shard of ``config`` not yet in ``out`` and the manifest; returns the
-    manifest (:func:`heapgrasp.data.shards.generate`: a local process pool of
-    ``workers``, or Ray at ``ray_address``; failed shards raise :class:`ShardFailure`
-    after the others are written)."""
-    return _generate(SPEC, config, out, workers=workers, ray_address=ray_address, progress=progress)

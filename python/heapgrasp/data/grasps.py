@@ -1,0 +1,333 @@
+"""The grasp network's dataset: VGN's scheme on the grids the loop feeds the network.
+
+For every scene (seed derived from the dataset's root seed and the scene's index, so a
+shard re-run is identical):
+
+1. ``min(Poisson(4) + 1, max_objects)`` objects of the dataset's object split
+   (:func:`~heapgrasp.data.scenes.object_split`), ``pile`` or ``packed`` (each with
+   probability 1/2), in a random scene group (transparent, opaque, specular or mixed),
+   as VGN's scenes and the view data's;
+2. the camera starts at ``p⁰`` (``side`` or ``above``, each with probability 1/2) and
+   captures, as the loop's phase does (timed paths, 30 fps, ideal silhouettes), either
+   (half the scenes) Algorithm 1's ``k ~ U{0..L−1}`` random view waypoints
+   (:func:`~heapgrasp.data.scenes.capture_random_views`, as the view data) or (the
+   other half, ``k = −1``) no-vp's circle (:meth:`~heapgrasp.loop.phase.Pipeline.plan`
+   of ``method = "no-vp"``). ``occupancy`` is what the loop's
+   :meth:`~heapgrasp.loop.phase.Pipeline.grasp_candidates` then feeds the grasp
+   network: :meth:`~heapgrasp.perception.silhouette.SilhouettePerception.grasp_input`,
+   ``Ŝ≥λ`` with the loop's settings (roof trimming included where ``roof_radius`` > 0);
+3. on the same scene the VGN baseline's phase (``method = "vgn"``: the circle, the
+   640×480 depth camera with the per-category sensor model) gives ``tsdf``, what the loop
+   feeds the network of ``input_kind = "tsdf"``;
+4. the labels (:mod:`heapgrasp.sim.grasp_labels`): VGN's ``points`` surface points ×
+   ``yaws`` yaws, labelled on the exact geometry, reduced to one grasp per point as VGN
+   does; a grasp whose TCP lies outside the grid is dropped; then balanced: every
+   positive and as many negatives drawn at random (all of them where there are fewer).
+
+Both grids are ``(R, R, R)`` float32 indexed ``[i, j, k]`` along the world's x, y, z
+from ``origin`` (the grid frame of the loop; voxel ``[i, j, k]`` spans ``origin +
+[i, j, k] · voxel_size`` to ``origin + [i+1, j+1, k+1] · voxel_size``). A scene with no
+object left on the table, or no positive grasp in the grid, is dropped and counted.
+
+Layout on disk (``OUT``): as the view data (:mod:`heapgrasp.data.shards`). Each shard
+holds, with leading sample axis ``S`` and grasp axis ``G``: ``occupancy``, ``tsdf``
+(``(S, R, R, R)`` float32), ``origin`` (``(S, 3)`` float64), ``voxel_size`` (``(S,)``
+float64), ``grasp_scene`` (``(G,)`` int64, the sample of each grasp), ``grasp_voxel``
+(``(G, 3)`` int64, the voxel of its TCP), ``grasp_position`` (``(G, 3)`` float32, TCP in
+world metres), ``grasp_quat`` (``(G, 4)`` float32, TCP orientation ``x, y, z, w`` in the
+world's (= the grid's) axes), ``grasp_width`` (``(G,)`` float32, opening in metres; the
+gripper's widest for a negative), ``grasp_label`` (``(G,)`` uint8, 1 success, 0
+failure), ``scene_seed``, ``scene_index``, ``k`` (``(S,)`` int64; ``k = −1``: the
+circle), and the counts ``scenes`` and ``dropped``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from heapgrasp.data.scenes import capture_random_views, run_config, split_models
+from heapgrasp.data.shards import DatasetSpec, ShardedConfig, generate, run_scenes, write_shard
+from heapgrasp.data.shards import read_manifest as _read_manifest
+
+__all__ = [
+    "CIRCLE",
+    "FORMAT",
+    "GraspDataConfig",
+    "Scene",
+    "draw_scene",
+    "generate",
+    "read_manifest",
+    "scene_sample",
+    "shard_samples",
+    "write_shard",
+]
+
+F32 = npt.NDArray[np.float32]
+
+FORMAT = "heapgrasp-grasp-data"
+VERSION = 1
+CIRCLE = 0.5
+"""Share of the scenes whose ``occupancy`` is captured along no-vp's circle (the others:
+Algorithm 1's random view waypoints)."""
+MEAN_EXTRA_OBJECTS = 4.0
+"""VGN's objects per scene: Poisson(4) + 1."""
+
+
+def _settings() -> dict[str, Any]:
+    from heapgrasp.geometry.gripper import PANDA_HAND
+    from heapgrasp.loop.config import RunConfig
+    from heapgrasp.perception.depth import DepthPerception
+
+    run = RunConfig()
+    names = (
+        "resolution",
+        "cube_size",
+        "lam",
+        "roof_radius",
+        "U",
+        "V",
+        "radius",
+        "theta_max",
+        "fps",
+        "ideal_depth",
+    )
+    return {
+        **{name: getattr(run, name) for name in names},
+        "circle": CIRCLE,
+        "tsdf_truncation": DepthPerception.truncation,
+        "max_opening": PANDA_HAND.max_opening,
+    }
+
+
+SPEC = DatasetSpec(FORMAT, VERSION, "grasp dataset", _settings, {"grasps": "grasp_label"})
+"""What the manifest says of the grasp dataset."""
+
+
+@dataclass(frozen=True)
+class GraspDataConfig(ShardedConfig):
+    """What :func:`generate` makes. The defaults are VGN's scheme with Table I's values."""
+
+    shard_size: int = 25
+    """Scenes per shard file."""
+    max_objects: int = 5
+    """The most objects in a scene (N_ob, Table I): VGN's Poisson(4) + 1 capped here."""
+    L: int = 3
+    """View waypoints (Table I): ``k ~ U{0..L−1}`` (Algorithm 1), and no-vp's and VGN's
+    circle of ``L`` waypoints."""
+    points: int = 120
+    """Surface points per scene (VGN)."""
+    yaws: int = 6
+    """Yaws per point, in [0, π) (VGN)."""
+
+    spec: ClassVar[DatasetSpec] = SPEC
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.positive("max_objects", "L", "points", "yaws")
+
+    def run_shard(self, shard: int) -> dict[str, Any]:
+        """Arrays of ``shard`` (:func:`shard_samples`)."""
+        return shard_samples(self, shard)
+
+
+# --------------------------------------------------------------------------- one scene
+
+
+class _Recorder:
+    """A grasp planner that keeps the grid the loop feeds it and plans nothing."""
+
+    name = "recorder"
+
+    def __init__(self, input_kind: str) -> None:
+        self.input_kind = input_kind
+        self.grids: list[F32] = []
+
+    def predict(self, grid: F32, frame: Any) -> Any:
+        from heapgrasp.planning.volumes import GraspVolumes
+
+        self.grids.append(np.array(grid, dtype=np.float32, copy=True))
+        r = frame.resolution
+        zero = np.zeros((r, r, r), np.float32)
+        return GraspVolumes(frame, zero, np.zeros((r, r, r, 4), np.float32), zero)
+
+    @property
+    def grid(self) -> F32:
+        """The grid of the one call."""
+        if len(self.grids) != 1:
+            raise RuntimeError(f"the loop planned grasps {len(self.grids)} times, not once")
+        return self.grids[0]
+
+
+@dataclass(frozen=True)
+class Scene:
+    """What scene ``index`` of a dataset is (:func:`draw_scene`)."""
+
+    index: int
+    world_seed: int
+    """The world's seed (``SimWorld.reset``), the pipelines' and the sample's ``scene_seed``."""
+    start: str
+    """``p⁰``: ``side`` or ``above``."""
+    k: int
+    """Algorithm 1's random view waypoints; −1: no-vp's circle."""
+    models: tuple[Any, ...]
+    layout: Literal["pile", "packed"]
+    category: str
+
+    def run_config(self, config: GraspDataConfig, method: str) -> Any:
+        """The loop's settings of ``method`` in this scene."""
+        return run_config(config.split, self.start, config.L, method)
+
+    @property
+    def silhouette_method(self) -> str:
+        """The loop method whose captures give ``occupancy``."""
+        return "no-vp" if self.k < 0 else "heapgrasp"
+
+    def world(self, library: Any, config: GraspDataConfig) -> Any:
+        """The scene's world, settled (close it, or use it as a context manager): as
+        :func:`heapgrasp.sim.build.scene_world` builds a run's, with these models."""
+        from heapgrasp.sim.optics import DepthModel
+        from heapgrasp.sim.world import SimWorld, WorldConfig
+
+        run = self.run_config(config, "vgn")
+        world = SimWorld(
+            library,
+            config=WorldConfig(cube_size=run.cube_size),
+            depth_model=DepthModel(ideal=run.ideal_depth),
+            seed=self.world_seed,
+        )
+        world.reset(
+            layout=self.layout, category=self.category, seed=self.world_seed, models=self.models
+        )
+        return world
+
+
+def draw_scene(
+    config: GraspDataConfig, index: int, library: Any
+) -> tuple[Scene, np.random.Generator]:
+    """Scene ``index`` and the generator its captures and labels draw from next."""
+    rng = np.random.default_rng(np.random.SeedSequence([config.root_seed, index]))
+    world_seed = int(rng.integers(2**31))
+    start = "side" if rng.random() < 0.5 else "above"
+    k = -1 if rng.random() < CIRCLE else int(rng.integers(0, config.L))
+    pool = split_models(library, config.split)
+    n_ob = min(int(rng.poisson(MEAN_EXTRA_OBJECTS)) + 1, config.max_objects, len(pool))
+    models = tuple(pool[i] for i in rng.choice(len(pool), size=n_ob, replace=False))
+    layout: Literal["pile", "packed"] = "pile" if rng.random() < 0.5 else "packed"
+    category = ("transparent", "opaque", "specular", "mixed")[int(rng.integers(4))]
+    return Scene(index, world_seed, start, k, models, layout, category), rng
+
+
+def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> dict[str, Any] | None:
+    """Runs scene ``index``; its sample, or None when dropped."""
+    from heapgrasp.sim.build import object_library, sim_pipeline
+    from heapgrasp.sim.robot import SimRobot
+
+    if library is None:
+        library = object_library(run_config(config.split, "side", config.L))
+    scene, rng = draw_scene(config, index, library)
+    occupancy, tsdf = _Recorder("occupancy"), _Recorder("tsdf")
+    with scene.world(library, config) as world:
+        if not world.objects:
+            return None
+        seed = scene.world_seed
+        silhouettes = scene.run_config(config, scene.silhouette_method)
+        pipeline = sim_pipeline(silhouettes, world, seed=seed, grasp_planner=occupancy)
+        if scene.k < 0:
+            pipeline.plan()
+        else:
+            capture_random_views(pipeline, rng, scene.k)
+            pipeline.grasp_candidates()
+        # The silhouettes draw nothing from the world's generator: the sensor noise of
+        # the depth frames is the VGN baseline's in a phase of this scene.
+        depth = scene.run_config(config, "vgn")
+        robot = pipeline.robot
+        assert isinstance(robot, SimRobot)
+        vgn = sim_pipeline(depth, world, seed=seed, grasp_planner=tsdf, body=robot.body)
+        vgn.plan()
+        frame = pipeline.frame
+        max_opening = pipeline.robot.gripper.geometry.max_opening
+        grasps = _label(world, rng, config)
+    idx = frame.index(grasps["position"])
+    inside = ((idx >= 0) & (idx < frame.resolution)).all(axis=1)
+    label = grasps["label"]
+    width = np.where(label == 1, grasps["width"], max_opening)
+    positives = np.flatnonzero(inside & (label == 1))
+    if len(positives) == 0:
+        return None
+    negatives = np.flatnonzero(inside & (label == 0))
+    n_neg = min(len(negatives), len(positives))
+    keep = np.sort(np.concatenate([positives, rng.choice(negatives, n_neg, replace=False)]))
+    return {
+        "occupancy": occupancy.grid,
+        "tsdf": tsdf.grid,
+        "origin": np.asarray(frame.origin, dtype=np.float64),
+        "voxel_size": np.float64(frame.voxel_size),
+        "grasp_voxel": idx[keep],
+        "grasp_position": grasps["position"][keep].astype(np.float32),
+        "grasp_quat": grasps["quat"][keep].astype(np.float32),
+        "grasp_width": width[keep].astype(np.float32),
+        "grasp_label": label[keep].astype(np.uint8),
+        "scene_seed": np.int64(scene.world_seed),
+        "scene_index": np.int64(index),
+        "k": np.int64(scene.k),
+    }
+
+
+def _label(world: Any, rng: np.random.Generator, config: GraspDataConfig) -> dict[str, Any]:
+    """VGN's grasps of the scene, labelled on the exact geometry and reduced to one per
+    point: ``position`` ``(N, 3)``, ``quat`` ``(N, 4)`` (x, y, z, w), ``width`` ``(N,)``
+    (the widest opening for a failure), ``label`` ``(N,)`` (1 success, 0 failure)."""
+    from heapgrasp.sim import grasp_labels
+
+    return dict(grasp_labels.label_scene(world, rng, points=config.points, yaws=config.yaws))
+
+
+# --------------------------------------------------------------------------- shards
+
+_PER_SCENE = {
+    "occupancy": np.float32,
+    "tsdf": np.float32,
+    "origin": np.float64,
+    "voxel_size": np.float64,
+    "scene_seed": np.int64,
+    "scene_index": np.int64,
+    "k": np.int64,
+}
+_PER_GRASP = {
+    "grasp_voxel": (np.int64, (3,)),
+    "grasp_position": (np.float32, (3,)),
+    "grasp_quat": (np.float32, (4,)),
+    "grasp_width": (np.float32, ()),
+    "grasp_label": (np.uint8, ()),
+}
+
+
+def shard_samples(config: GraspDataConfig, shard: int) -> dict[str, Any]:
+    """Arrays of ``shard`` (every scene of it run in this process)."""
+    from heapgrasp.loop.config import RunConfig
+
+    samples, scenes = run_scenes(config, shard, scene_sample)
+    r = RunConfig().resolution
+    shapes = {"occupancy": (r, r, r), "tsdf": (r, r, r), "origin": (3,)}
+    data: dict[str, Any] = {}
+    for key, dtype in _PER_SCENE.items():
+        empty = np.zeros((0, *shapes.get(key, ())), dtype)
+        data[key] = np.stack([s[key] for s in samples]).astype(dtype) if samples else empty
+    counts = [len(s["grasp_label"]) for s in samples]
+    data["grasp_scene"] = np.repeat(np.arange(len(samples), dtype=np.int64), counts)
+    for key, (dtype, shape) in _PER_GRASP.items():
+        parts = [s[key] for s in samples]
+        data[key] = np.concatenate(parts).astype(dtype) if parts else np.zeros((0, *shape), dtype)
+    data["scenes"] = np.int64(len(scenes))
+    data["dropped"] = np.int64(len(scenes) - len(samples))
+    return data
+
+
+def read_manifest(out: Path) -> dict[str, Any]:
+    """The dataset's ``manifest.json``; ValueError naming the file when it is not one."""
+    return _read_manifest(out, SPEC)

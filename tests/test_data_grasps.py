@@ -1,0 +1,193 @@
+"""The grasp network's dataset (VGN's scheme on the loop's grids, :mod:`heapgrasp.data.grasps`)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pybullet")
+
+from heapgrasp.cli import main
+from heapgrasp.data.grasps import GraspDataConfig, draw_scene, generate, read_manifest
+from heapgrasp.data.scenes import capture_random_views
+from heapgrasp.data.shards import shard_path
+from heapgrasp.geometry.grid import GridFrame
+from heapgrasp.loop.config import RunConfig
+from heapgrasp.planning.volumes import GraspVolumes
+from heapgrasp.sim.build import object_library, sim_pipeline
+
+# root seed 0: scene 0 is captured along no-vp's circle (k = -1, one object), scene 1
+# along k = 2 random view waypoints (two objects)
+CONFIG = GraspDataConfig(scenes=2, root_seed=0, shard_size=1, max_objects=2)
+R = 40
+
+
+def _load(path: Path) -> dict[str, Any]:
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[dict[str, Any]]]:
+    out = tmp_path_factory.mktemp("grasps")
+    manifest = generate(CONFIG, out, progress=False)
+    assert manifest["complete"] and manifest["samples"] == 2 and manifest["dropped"] == 0
+    shards = [_load(shard_path(out, s)) for s in range(2)]
+    assert manifest["grasps"] == sum(len(d["grasp_label"]) for d in shards) > 0
+    return out, shards
+
+
+def test_shards_hold_the_contract(dataset: tuple[Path, list[dict[str, Any]]]) -> None:
+    _, shards = dataset
+    per_scene = {
+        "occupancy": (np.float32, (R, R, R)),
+        "tsdf": (np.float32, (R, R, R)),
+        "origin": (np.float64, (3,)),
+        "voxel_size": (np.float64, ()),
+        "scene_seed": (np.int64, ()),
+        "scene_index": (np.int64, ()),
+        "k": (np.int64, ()),
+    }
+    per_grasp = {
+        "grasp_scene": (np.int64, ()),
+        "grasp_voxel": (np.int64, (3,)),
+        "grasp_position": (np.float32, (3,)),
+        "grasp_quat": (np.float32, (4,)),
+        "grasp_width": (np.float32, ()),
+        "grasp_label": (np.uint8, ()),
+    }
+    for d, k in zip(shards, (-1, 2), strict=True):
+        assert set(d) == {*per_scene, *per_grasp, "scenes", "dropped"}
+        assert d["scenes"].dtype == d["dropped"].dtype == np.int64 and d["scenes"].shape == ()
+        s, g = len(d["k"]), len(d["grasp_label"])
+        for key, (dtype, shape) in per_scene.items():
+            assert d[key].dtype == dtype and d[key].shape == (s, *shape), key
+        for key, (dtype, shape) in per_grasp.items():
+            assert d[key].dtype == dtype and d[key].shape == (g, *shape), key
+        assert d["k"].tolist() == [k]
+        assert (d["grasp_scene"] == 0).all()
+        np.testing.assert_allclose(np.linalg.norm(d["grasp_quat"], axis=1), 1.0, atol=1e-5)
+        # Ŝ≥λ: the occupancy where it reaches λ = 0.9, else 0
+        occupied = d["occupancy"][d["occupancy"] > 0]
+        assert occupied.size and ((occupied >= 0.9) & (occupied <= 1)).all()
+        # the TSDF, truncated and normalised (scene 1's transparent objects may leave
+        # no surface in it: the depth camera sees through them)
+        assert (np.abs(d["tsdf"]) <= 1.0).all() and (d["tsdf"] > 0).any()
+
+
+def test_labels_are_balanced_and_voxels_hold_their_grasps(
+    dataset: tuple[Path, list[dict[str, Any]]],
+) -> None:
+    _, shards = dataset
+    opening = 0.08
+    for d in shards:
+        label = d["grasp_label"]
+        positives, negatives = int((label == 1).sum()), int((label == 0).sum())
+        assert positives > 0 and set(np.unique(label)) <= {0, 1}
+        assert negatives <= positives  # all positives, as many negatives where there are
+        width = d["grasp_width"]
+        assert ((width >= 0) & (width <= opening + 1e-6)).all()
+        np.testing.assert_allclose(width[label == 0], opening, atol=1e-6)
+        frame = GridFrame(tuple(d["origin"][0]), float(d["voxel_size"][0]) * R, R)
+        voxel = d["grasp_voxel"]
+        assert ((voxel >= 0) & (voxel < R)).all()
+        np.testing.assert_array_equal(voxel, frame.index(d["grasp_position"]))
+        lo = frame.centers(voxel) - frame.voxel_size / 2
+        assert (
+            (d["grasp_position"] >= lo - 1e-6)
+            & (d["grasp_position"] < lo + frame.voxel_size + 1e-6)
+        ).all()
+
+
+class _Spy:
+    """A grasp planner that keeps what the loop feeds it."""
+
+    name = "spy"
+
+    def __init__(self, input_kind: str) -> None:
+        self.input_kind = input_kind
+        self.grids: list[np.ndarray] = []
+
+    def predict(self, grid: np.ndarray, frame: GridFrame) -> GraspVolumes:
+        self.grids.append(grid.copy())
+        z = np.zeros((R, R, R), np.float32)
+        return GraspVolumes(frame, z, np.zeros((R, R, R, 4), np.float32), z)
+
+
+def test_inputs_are_what_the_loop_feeds_the_network(
+    dataset: tuple[Path, list[dict[str, Any]]],
+) -> None:
+    _, shards = dataset
+    library = object_library(RunConfig())
+    for index, d in enumerate(shards):
+        scene, rng = draw_scene(CONFIG, index, library)
+        assert int(d["scene_seed"][0]) == scene.world_seed
+        seed = scene.world_seed
+        net = {"grasp_planner": "network", "start": scene.start, "split": "train"}
+        # the VGN baseline's phase in a fresh world of the scene: its TSDF
+        spy = _Spy("tsdf")
+        with scene.world(library, CONFIG) as world:
+            vgn = sim_pipeline(RunConfig(method="vgn", **net), world, seed=seed, grasp_planner=spy)
+            vgn.plan()
+        (tsdf,) = spy.grids
+        assert tsdf.dtype == np.float32
+        np.testing.assert_array_equal(d["tsdf"][0], tsdf)
+        # the silhouette method's grid where it plans grasps
+        spy = _Spy("occupancy")
+        with scene.world(library, CONFIG) as world:
+            if scene.k < 0:  # no-vp's phase
+                run = RunConfig(method="no-vp", **net)
+                sim_pipeline(run, world, seed=seed, grasp_planner=spy).plan()
+            else:  # HEAPGrasp's at a view waypoint, after k of them
+                run = RunConfig(method="heapgrasp", view_planner="oracle", **net)
+                pipeline = sim_pipeline(run, world, seed=seed, grasp_planner=spy)
+                capture_random_views(pipeline, rng, scene.k)
+                pipeline.grasp_candidates()
+                high = pipeline.perception.grid.high_confidence(run.lam)
+                assert (spy.grids[0] <= high).all()  # Ŝ≥λ, its roofs trimmed
+        (occupancy,) = spy.grids
+        assert occupancy.dtype == np.float32
+        np.testing.assert_array_equal(d["occupancy"][0], occupancy)
+
+
+def test_a_shard_run_again_has_the_same_bytes_and_resume_skips(
+    dataset: tuple[Path, list[dict[str, Any]]],
+) -> None:
+    out, _ = dataset
+    first = shard_path(out, 0).read_bytes()
+    os.remove(shard_path(out, 0))
+    kept = shard_path(out, 1).stat().st_mtime_ns
+    manifest = generate(CONFIG, out, progress=False)
+    assert shard_path(out, 0).read_bytes() == first
+    assert shard_path(out, 1).stat().st_mtime_ns == kept  # kept, not redone
+    assert manifest["complete"] and read_manifest(out)["config"]["scenes"] == 2
+    with pytest.raises(ValueError, match="max_objects: 2 there, 3 asked"):
+        generate(GraspDataConfig(**{**CONFIG.identity(), "scenes": 2, "max_objects": 3}), out)
+
+
+def test_bad_settings_are_named() -> None:
+    with pytest.raises(ValueError, match="split must be one of"):
+        GraspDataConfig(split="holdout")
+    with pytest.raises(ValueError, match="points must be an integer >= 1, got 0"):
+        GraspDataConfig(points=0)
+
+
+def test_cli(
+    dataset: tuple[Path, list[dict[str, Any]]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    out, _ = dataset
+    args = ["data", "grasps", str(out), "--scenes", "2", "--seed", "0", "--quiet"]
+    args += ["--max-objects", "2", "--workers", "1"]
+    assert main([*args, "--shard-size", "1"]) == 0  # every shard there: nothing to run
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["samples"] == 2 and summary["grasps"] > 0 and summary["complete"]
+    assert main([*args, "--shard-size", "2"]) == 1
+    assert "shard_size: 1 there, 2 asked" in capsys.readouterr().err
+    assert main(["data", "grasps", str(out), "--scenes", "0"]) == 2
+    assert "--scenes" in capsys.readouterr().err
+    assert main(["data", "grasps", str(out), "--split", "holdout"]) == 2
