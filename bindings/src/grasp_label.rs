@@ -1,6 +1,8 @@
 //! `GraspLabeller`.
 
-use heapgrasp_core::grasp_label::{GraspLabeller, GraspScene, HandGeometry, LabelParams};
+use heapgrasp_core::grasp_label::{
+    GraspLabeller, GraspScene, HandGeometry, HandParts, LabelParams,
+};
 use numpy::PyArray1;
 use pyo3::exceptions::PyKeyError;
 use pyo3::prelude::*;
@@ -34,16 +36,48 @@ fn hand_item<'py>(d: &Bound<'py, PyMapping>, key: &str) -> PyResult<Bound<'py, P
     })
 }
 
-fn hand_arg(hand: &Bound<'_, PyAny>) -> PyResult<HandGeometry> {
+/// `(V, 3)` float64 arrays, copied.
+fn vertex_arrays(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Vec<f64>>> {
+    let items = items_arg(
+        obj,
+        name,
+        MAX_PIECES,
+        "(V, 3) float64 arrays",
+        &format!("at most {MAX_PIECES} pieces"),
+    )?;
+    items
+        .iter()
+        .enumerate()
+        .map(|(k, item)| {
+            let name = format!("{name}[{k}]");
+            let a = array_arg::<f64>(item, &name, "float64", Some(2))?;
+            check_tail(&name, &a.shape, &[3], "(V, 3)")?;
+            Ok(a.as_slice().to_vec())
+        })
+        .collect()
+}
+
+/// The hand: a mapping of `GripperGeometry`'s fields (its boxes), or of convex parts
+/// (`palm`, `left`, `right`: sequences of `(V, 3)` arrays; `max_opening`).
+fn hand_arg(hand: &Bound<'_, PyAny>) -> PyResult<HandParts> {
     let d = hand.cast::<PyMapping>().map_err(|_| {
         InvalidValueError::new_err(format!(
-            "hand: expected a mapping of GripperGeometry's fields, got {}",
+            "hand: expected a mapping (GripperGeometry's fields, or palm/left/right/max_opening), got {}",
             type_name(hand)
         ))
     })?;
+    if d.contains("palm")? {
+        let parts = |k: &str| vertex_arrays(&hand_item(d, k)?, &format!("hand[{k:?}]"));
+        return Ok(HandParts {
+            palm: parts("palm")?,
+            left: parts("left")?,
+            right: parts("right")?,
+            max_opening: float_arg(&hand_item(d, "max_opening")?, "hand[\"max_opening\"]")?,
+        });
+    }
     let f = |k: &str| float_arg(&hand_item(d, k)?, &format!("hand[{k:?}]"));
     let pair = |k: &str| floats_arg::<2>(&hand_item(d, k)?, &format!("hand[{k:?}]"));
-    Ok(HandGeometry {
+    let geometry = HandGeometry {
         finger_width: f("finger_width")?,
         finger_tip: f("finger_tip")?,
         finger_base: f("finger_base")?,
@@ -56,7 +90,9 @@ fn hand_arg(hand: &Bound<'_, PyAny>) -> PyResult<HandGeometry> {
         palm_front_half: pair("palm_front_half")?,
         palm_back_half: pair("palm_back_half")?,
         max_opening: f("max_opening")?,
-    })
+    };
+    geometry.validate().py()?;
+    Ok(geometry.parts())
 }
 
 /// Exact-geometry grasp labels on convex object pieces and a table.
@@ -79,8 +115,8 @@ impl PyGraspLabeller {
         object_margin: &Bound<'_, PyAny>,
         min_width: &Bound<'_, PyAny>,
     ) -> PyResult<Self> {
+        let hand = hand_arg(hand)?;
         let params = LabelParams {
-            hand: hand_arg(hand)?,
             pregrasp_distance: float_arg(pregrasp_distance, "pregrasp_distance")?,
             friction: float_arg(friction, "friction")?,
             hand_margin: float_arg(hand_margin, "hand_margin")?,
@@ -89,7 +125,7 @@ impl PyGraspLabeller {
         };
         let scene = GraspScene::new(float_arg(table_z, "table_z")?).py()?;
         Ok(Self {
-            inner: GraspLabeller::new(scene, params).py()?,
+            inner: GraspLabeller::new(scene, &hand, params).py()?,
         })
     }
 
@@ -109,24 +145,8 @@ impl PyGraspLabeller {
             "expected an int in [0, 2**31 - 1]",
         )?;
         let pose = pose_arg(obj2world, "obj2world")?;
-        let items = items_arg(
-            pieces,
-            "pieces",
-            MAX_PIECES,
-            "(V, 3) float64 arrays",
-            &format!("at most {MAX_PIECES} pieces"),
-        )?;
-        let arrays = items
-            .iter()
-            .enumerate()
-            .map(|(k, item)| {
-                let name = format!("pieces[{k}]");
-                let a = array_arg::<f64>(item, &name, "float64", Some(2))?;
-                check_tail(&name, &a.shape, &[3], "(V, 3)")?;
-                Ok(a)
-            })
-            .collect::<PyResult<Vec<_>>>()?;
-        let slices: Vec<&[f64]> = arrays.iter().map(|a| a.as_slice()).collect();
+        let arrays = vertex_arrays(pieces, "pieces")?;
+        let slices: Vec<&[f64]> = arrays.iter().map(Vec::as_slice).collect();
         // `id` was range-checked by `int_arg`.
         let id = i32::try_from(id).unwrap_or(i32::MAX);
         self.inner.add_object(id, pose, &slices).py()

@@ -3,13 +3,13 @@
 :func:`labeller` builds a :class:`heapgrasp.GraspLabeller` (the Rust core's
 ``grasp_label``) from a live :class:`~heapgrasp.sim.world.SimWorld`: every object's
 convex collision pieces (the files PyBullet collides it as, each as its convex hull) at
-the pose PyBullet has it now, the table's top, the Panda hand
-(:data:`~heapgrasp.geometry.gripper.PANDA_HAND`), the friction PyBullet uses between a
-finger and an object, and PyBullet's contact margins. It labels a grasp as
-:func:`heapgrasp.sim.gripper.execute_grasp` would execute it with the fingers fully open
-(VGN's data generation): collision-free pre-grasp pose and approach, both fingers
-closing on one object, antipodal contacts within the friction cone (codes in
-:data:`REASONS`). It is about a thousand times faster than executing the grasp.
+the pose PyBullet has it now, the table's top, the Panda hand as PyBullet collides it
+(:func:`panda_hand_parts`: the hulls of its collision meshes, fingers open), the
+friction PyBullet uses between a finger and an object, and PyBullet's contact margins.
+It labels a grasp as :func:`heapgrasp.sim.gripper.execute_grasp` would execute it with
+the fingers fully open (VGN's data generation): collision-free pre-grasp pose and
+approach, both fingers closing on one object, antipodal contacts within the friction
+cone (codes in :data:`REASONS`), thousands of times faster than executing it.
 
 :func:`sample_grasps` is VGN's grasp sampler (``generate_data.py`` of VGN): surface
 points of the objects (area-weighted on their true meshes) whose outward normal has
@@ -28,7 +28,7 @@ direction and the fingers closing along y.
 
 from __future__ import annotations
 
-import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -40,7 +40,8 @@ import pybullet as pb
 from heapgrasp import GraspLabeller
 from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE
-from heapgrasp.sim.fingers import FINGER_FRICTION, MIN_HELD_WIDTH
+from heapgrasp.sim.fingers import FINGER_FRICTION, MAX_OPENING, MIN_HELD_WIDTH
+from heapgrasp.sim.gripper import FINGER_JOINT_Z, PANDA_MESHES, TCP_OFFSET
 from heapgrasp.sim.objects import load_mesh
 from heapgrasp.sim.world import SimWorld
 
@@ -52,6 +53,7 @@ __all__ = [
     "best_yaw",
     "label_scene",
     "labeller",
+    "panda_hand_parts",
     "sample_grasps",
     "table_top",
 ]
@@ -103,20 +105,42 @@ def _surface(path: str) -> tuple[F64, npt.NDArray[np.int64]]:
     return v, f
 
 
+def panda_hand_parts(opening: float = MAX_OPENING) -> dict[str, Any]:
+    """The Panda hand as PyBullet collides it, for :class:`heapgrasp.GraspLabeller`:
+    the vertices of ``hand.obj`` and of the two ``finger.obj`` of
+    :data:`~heapgrasp.sim.gripper.PANDA_MESHES` (each collided as its convex hull) placed
+    as :class:`~heapgrasp.sim.gripper.PandaHand`'s URDF places them, in the TCP frame
+    with the finger pads ``opening`` apart.
+
+    Returns ``{"palm": [(V, 3)], "left": [(V, 3)], "right": [(V, 3)], "max_opening":
+    opening}`` (float64 arrays, metres; ``left`` on the +y side).
+    """
+    collision = PANDA_MESHES / "collision"
+    palm = _piece(str(collision / "hand.obj")) - np.array([0.0, 0.0, TCP_OFFSET])
+    finger = _piece(str(collision / "finger.obj"))
+    z = FINGER_JOINT_Z - TCP_OFFSET
+    # The right finger's collision origin turns it by π about z (the URDF's rpy).
+    left = finger + np.array([0.0, 0.5 * opening, z])
+    right = finger * np.array([-1.0, -1.0, 1.0]) + np.array([0.0, -0.5 * opening, z])
+    return {"palm": [palm], "left": [left], "right": [right], "max_opening": opening}
+
+
 def labeller(
     world: SimWorld,
     *,
-    gripper: GripperGeometry = PANDA_HAND,
+    hand: Mapping[str, Any] | None = None,
     pregrasp_distance: float = PREGRASP_DISTANCE,
 ) -> GraspLabeller:
     """A labeller of ``world``'s scene as it is now (objects at their PyBullet poses).
 
-    Object ids are the world's (:attr:`SimWorld.objects`). Friction is the world's
-    object friction times :data:`~heapgrasp.sim.fingers.FINGER_FRICTION`, as PyBullet
-    combines them.
+    ``hand``: what :class:`heapgrasp.GraspLabeller` takes (convex parts, or a
+    :class:`~heapgrasp.geometry.gripper.GripperGeometry` as a dict for its boxes);
+    default :func:`panda_hand_parts`, the simulated hand. Object ids are the world's
+    (:attr:`SimWorld.objects`). Friction is the world's object friction times
+    :data:`~heapgrasp.sim.fingers.FINGER_FRICTION`, as PyBullet combines them.
     """
     out = GraspLabeller(
-        dataclasses.asdict(gripper),
+        panda_hand_parts() if hand is None else hand,
         table_z=table_top(world),
         friction=world.config.friction * FINGER_FRICTION,
         pregrasp_distance=pregrasp_distance,
@@ -295,9 +319,7 @@ def label_scene(
 
     samples = sample_grasps(world, rng, points, yaws, gripper=gripper)
     n = len(samples.points)
-    ok, width, held, reason = labeller(world, gripper=gripper).label(
-        samples.flat(), threads=threads
-    )
+    ok, width, held, reason = labeller(world).label(samples.flat(), threads=threads)
     index, label, best_width = best_yaw(ok.reshape(n, yaws), width.reshape(n, yaws))
     rows = np.arange(n)
     pose = samples.poses[rows, index]

@@ -40,7 +40,9 @@ from heapgrasp.sim.robot import Robot
 from heapgrasp.sim.world import SimWorld
 
 __all__ = [
+    "FINGER_JOINT_Z",
     "MAX_OPENING",
+    "PANDA_MESHES",
     "CollisionStage",
     "Grasp",
     "GraspOutcome",
@@ -54,6 +56,12 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Distance from the hand base to the TCP along z, metres.
 TCP_OFFSET = 0.105
+
+#: Distance from the hand base to the finger joints along z, metres.
+FINGER_JOINT_Z = 0.0584
+
+#: The Panda meshes of ``pybullet_data`` (``visual/`` and ``collision/``).
+PANDA_MESHES = Path(pybullet_data.getDataPath()) / "franka_panda" / "meshes"
 
 _HAND_URDF = """<?xml version="1.0"?>
 <robot name="panda_hand_free">
@@ -83,12 +91,12 @@ _HAND_URDF = """<?xml version="1.0"?>
   </link>
   <joint name="panda_finger_joint1" type="prismatic">
     <parent link="panda_hand"/><child link="panda_leftfinger"/>
-    <origin xyz="0 0 0.0584"/><axis xyz="0 1 0"/>
+    <origin xyz="0 0 {j}"/><axis xyz="0 1 0"/>
     <limit effort="20" lower="0.0" upper="0.04" velocity="0.2"/>
   </joint>
   <joint name="panda_finger_joint2" type="prismatic">
     <parent link="panda_hand"/><child link="panda_rightfinger"/>
-    <origin xyz="0 0 0.0584"/><axis xyz="0 -1 0"/>
+    <origin xyz="0 0 {j}"/><axis xyz="0 -1 0"/>
     <limit effort="20" lower="0.0" upper="0.04" velocity="0.2"/>
   </joint>
 </robot>
@@ -100,8 +108,7 @@ def hand_urdf(cache_dir: Path | None = None) -> Path:
     root = (cache_dir or default_cache_dir()) / "robots"
     root.mkdir(parents=True, exist_ok=True)
     path = root / "panda_hand_free.urdf"
-    meshes = Path(pybullet_data.getDataPath()) / "franka_panda" / "meshes"
-    text = _HAND_URDF.format(m=meshes.as_posix())
+    text = _HAND_URDF.format(m=PANDA_MESHES.as_posix(), j=FINGER_JOINT_Z)
     if not path.exists() or path.read_text() != text:
         path.write_text(text)
     return path

@@ -1,10 +1,15 @@
-//! The hand of the grasp labeller: a parallel-jaw gripper as boxes in its TCP frame.
+//! The hand of the grasp labeller: a parallel-jaw gripper as convex parts in its TCP
+//! frame, the fingers at their widest opening.
 //!
-//! The numbers are those of `heapgrasp.geometry.gripper.GripperGeometry` (the caller
-//! passes them; nothing here knows which gripper it is). TCP frame: z is the approach
-//! direction (fingertips at positive z), the fingers close along y, x runs across the
-//! finger width; the fingers' inner pads sit at `y = ±opening / 2`.
+//! TCP frame: z is the approach direction (fingertips at positive z), the fingers close
+//! along y (the left finger, on the +y side, moves along −y), x runs across the finger
+//! width. The parts are either the boxes of `heapgrasp.geometry.gripper.GripperGeometry`
+//! ([`HandGeometry::parts`]) or any convex pieces ([`HandParts`], e.g. the hulls of a
+//! simulator's collision meshes); nothing here knows which gripper it is.
 
+use parry3d::shape::ConvexPolyhedron;
+
+use super::convex::convex_hull;
 use crate::error::{Error, Result};
 
 /// Collision model of a parallel-jaw gripper in its TCP frame (metres): the fields of
@@ -107,49 +112,61 @@ impl HandGeometry {
         self.finger_tip - self.palm_front
     }
 
-    /// The labeller's boxes for this hand with the fingers at `max_opening`.
-    pub(crate) fn boxes(&self, pregrasp_distance: f64) -> HandBoxes {
+    /// The hand's boxes as convex parts: the palm's front and back parts, each finger's
+    /// tip and base parts, the fingers' inner pads at `y = ±max_opening / 2`.
+    pub fn parts(&self) -> HandParts {
         let o2 = 0.5 * self.max_opening;
         let hw = 0.5 * self.finger_width;
         let [fx, fy] = self.palm_front_half;
         let [bx, by] = self.palm_back_half;
-        let palm_front =
-            TcpBox::from_bounds([-fx, -fy, self.palm_split], [fx, fy, self.palm_front]);
-        let palm_back = TcpBox::from_bounds([-bx, -by, self.palm_back], [bx, by, self.palm_split]);
-        let finger = |sign: f64, thickness: f64, z0: f64, z1: f64| {
-            let (a, b) = (sign * o2, sign * (o2 + thickness));
-            TcpBox::from_bounds([-hw, a.min(b), z0], [hw, a.max(b), z1])
+        let finger = |sign: f64| {
+            let part = |thickness: f64, z0: f64, z1: f64| {
+                let (a, b) = (sign * o2, sign * (o2 + thickness));
+                corners([-hw, a.min(b), z0], [hw, a.max(b), z1])
+            };
+            vec![
+                part(self.tip_thickness, self.finger_split, self.finger_tip),
+                part(self.base_thickness, self.finger_base, self.finger_split),
+            ]
         };
-        let parts = [
-            palm_front,
-            palm_back,
-            finger(1.0, self.tip_thickness, self.finger_split, self.finger_tip),
-            finger(
-                1.0,
-                self.base_thickness,
-                self.finger_base,
-                self.finger_split,
-            ),
-            finger(-1.0, self.tip_thickness, self.finger_split, self.finger_tip),
-            finger(
-                -1.0,
-                self.base_thickness,
-                self.finger_base,
-                self.finger_split,
-            ),
-        ];
-        let swept = parts.map(|b| b.swept_back(pregrasp_distance));
-        // The part of each finger next to its pad, over the finger's whole length. As a
-        // finger closes, it covers its pad's prism and nothing else that it did not
-        // cover already, so casting this slab finds the finger's first contact.
-        let pad = self.tip_thickness.min(self.base_thickness);
-        let pads = [
-            finger(1.0, pad, self.finger_base, self.finger_tip),
-            finger(-1.0, pad, self.finger_base, self.finger_tip),
-        ];
-        let bound = swept.iter().skip(1).fold(swept[0], |acc, b| acc.union(b));
-        HandBoxes { swept, pads, bound }
+        HandParts {
+            palm: vec![
+                corners([-fx, -fy, self.palm_split], [fx, fy, self.palm_front]),
+                corners([-bx, -by, self.palm_back], [bx, by, self.palm_split]),
+            ],
+            left: finger(1.0),
+            right: finger(-1.0),
+            max_opening: self.max_opening,
+        }
     }
+}
+
+/// The 8 corners of a box, flat `(8, 3)`.
+fn corners(lo: [f64; 3], hi: [f64; 3]) -> Vec<f64> {
+    let mut v = Vec::with_capacity(24);
+    for x in [lo[0], hi[0]] {
+        for y in [lo[1], hi[1]] {
+            for z in [lo[2], hi[2]] {
+                v.extend([x, y, z]);
+            }
+        }
+    }
+    v
+}
+
+/// A parallel-jaw hand as convex parts in its TCP frame (metres), fingers at the widest
+/// opening: each part a flat `(V, 3)` vertex array collided as its convex hull.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandParts {
+    /// The body of the hand (does not move while the fingers close).
+    pub palm: Vec<Vec<f64>>,
+    /// The finger on the +y side, closing along −y.
+    pub left: Vec<Vec<f64>>,
+    /// The finger on the −y side, closing along +y.
+    pub right: Vec<Vec<f64>>,
+    /// Distance between the finger pads, fully open (m): how far a closing finger may
+    /// travel.
+    pub max_opening: f64,
 }
 
 /// An axis-aligned box in the TCP frame.
@@ -173,14 +190,6 @@ impl TcpBox {
 
     fn hi(&self) -> [f64; 3] {
         std::array::from_fn(|i| self.centre[i] + self.half[i])
-    }
-
-    /// The volume the box covers moving from `d` back along −z to where it is: the box
-    /// itself, longer by `d` toward −z (the approach is a translation along z).
-    pub fn swept_back(&self, d: f64) -> Self {
-        let mut lo = self.lo();
-        lo[2] -= d;
-        Self::from_bounds(lo, self.hi())
     }
 
     /// The volume the box covers moving by `d` along `axis` (sign of `d` = direction).
@@ -208,16 +217,106 @@ impl TcpBox {
     pub fn near(&self, p: &[f64; 3], r: f64) -> bool {
         (0..3).all(|i| (p[i] - self.centre[i]).abs() <= self.half[i] + r)
     }
+
+    /// World z of the box's lowest point, for a TCP-to-world rotation's last row `rz`
+    /// and TCP height `tz`.
+    #[inline]
+    pub fn lowest_z(&self, rz: &[f64; 3], tz: f64) -> f64 {
+        tz + (0..3)
+            .map(|i| rz[i] * self.centre[i] - rz[i].abs() * self.half[i])
+            .sum::<f64>()
+    }
 }
 
-/// The hand's boxes in the TCP frame, fingers at the widest opening.
+/// One convex part of the hand: its hull (TCP frame, millimetres) and bounding box (m).
 #[derive(Debug, Clone)]
-pub(crate) struct HandBoxes {
-    /// Palm front, palm back, then the left (+y) finger's tip and base parts and the
-    /// right (−y) finger's, each swept back along −z by the pre-grasp distance.
-    pub swept: [TcpBox; 6],
-    /// The slab at each finger's pad (left = +y, right = −y) over the finger's length.
-    pub pads: [TcpBox; 2],
+pub(crate) struct Part {
+    pub hull: ConvexPolyhedron,
+    pub bound: TcpBox,
+}
+
+impl Part {
+    fn new(name: &str, vertices: &[f64]) -> Result<Self> {
+        let (hull, lo, hi) = convex_hull(name, vertices)?;
+        Ok(Self {
+            hull,
+            bound: TcpBox::from_bounds(lo, hi),
+        })
+    }
+
+    /// The part together with its copy `d` back along −z: what it covers moving to where
+    /// it is from `d` back (the hull of a convex set and its translate is their sweep).
+    fn swept_back(name: &str, vertices: &[f64], d: f64) -> Result<Self> {
+        let mut both = vertices.to_vec();
+        both.extend(
+            vertices
+                .chunks_exact(3)
+                .flat_map(|p| [p[0], p[1], p[2] - d]),
+        );
+        Self::new(name, &both)
+    }
+}
+
+/// The hand as the labeller queries it.
+#[derive(Debug, Clone)]
+pub(crate) struct Hand {
+    /// Every part (palm, left, right), swept back along −z by the pre-grasp distance.
+    pub swept: Vec<Part>,
+    /// The left (+y) and the right (−y) finger's parts.
+    pub fingers: [Vec<Part>; 2],
     /// A box around all of `swept`.
     pub bound: TcpBox,
+    pub max_opening: f64,
+}
+
+impl Hand {
+    /// Builds the hulls of `parts` and their approach sweeps.
+    ///
+    /// # Errors
+    /// [`Error::Value`] for a bad `max_opening` or a finger without parts; the errors of
+    /// a bad part's vertices (as [`super::GraspScene::add_object`]), named
+    /// `hand.palm[k]`, `hand.left[k]`, `hand.right[k]`.
+    pub fn new(parts: &HandParts, pregrasp_distance: f64) -> Result<Self> {
+        if !(parts.max_opening > 0.0 && parts.max_opening <= 1.0) {
+            return Err(Error::value(
+                "hand.max_opening",
+                parts.max_opening,
+                "must be in (0, 1] m",
+            ));
+        }
+        let mut swept = Vec::new();
+        let mut fingers = [Vec::new(), Vec::new()];
+        for (group, list) in [
+            ("palm", &parts.palm),
+            ("left", &parts.left),
+            ("right", &parts.right),
+        ] {
+            if group != "palm" && list.is_empty() {
+                return Err(Error::value(
+                    &format!("hand.{group}"),
+                    0,
+                    "a finger needs at least 1 part",
+                ));
+            }
+            for (k, v) in list.iter().enumerate() {
+                let name = format!("hand.{group}[{k}]");
+                swept.push(Part::swept_back(&name, v, pregrasp_distance)?);
+                match group {
+                    "left" => fingers[0].push(Part::new(&name, v)?),
+                    "right" => fingers[1].push(Part::new(&name, v)?),
+                    _ => {}
+                }
+            }
+        }
+        let bound = swept
+            .iter()
+            .skip(1)
+            .fold(swept[0].bound, |acc, p| acc.union(&p.bound));
+        Ok(Self {
+            swept,
+            fingers,
+            bound,
+            max_opening: parts.max_opening,
+        })
+    }
 }

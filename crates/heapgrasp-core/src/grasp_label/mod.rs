@@ -8,13 +8,14 @@
 //! stops at any contact; then the fingers close, force-limited, the hand lifts and shakes,
 //! and the grasp holds if both fingers touch one object. Here, per grasp:
 //!
-//! 1. **approach** — each box of the hand ([`HandGeometry`]), swept from the pre-grasp
-//!    pose to the grasp pose (a translation along its own z, so the swept volume is the
-//!    box lengthened by the pre-grasp distance), must stay more than the contact margin
-//!    from every convex piece of every object and from the table, else
-//!    [`Reason::Collision`];
-//! 2. **closing** — each finger's pad is shape-cast inward along ∓y across the whole
-//!    opening; its first contact is what that finger closes on. The fingers are
+//! 1. **approach** — each convex part of the hand ([`HandParts`]: the boxes of a
+//!    [`HandGeometry`] or a simulator's collision hulls), swept from the pre-grasp pose
+//!    to the grasp pose (a translation along its own z: the swept volume is the hull of
+//!    the part and its translate), must stay more than the contact margin from every
+//!    convex piece of every object and from the table, else [`Reason::Collision`];
+//! 2. **closing** — each finger's parts are shape-cast inward along ∓y across the whole
+//!    opening; the first contact is what that finger closes on, and the closest points
+//!    there give the contact normal as the physics engine computes it. The fingers are
 //!    coupled, so a finger that meets a free object first pushes it toward the other
 //!    finger: the closed width is the opening minus both fingers' travels, wherever the
 //!    object started between them. Both fingers must meet the same object
@@ -33,13 +34,15 @@
 //! Grasps are labelled in parallel over contiguous chunks; each label depends on its
 //! grasp alone, so results do not depend on the thread count.
 
+mod convex;
 mod hand;
 mod scene;
 #[cfg(test)]
 mod tests;
 
-pub use hand::HandGeometry;
-pub use scene::{GraspScene, MAX_PIECE_VERTICES};
+pub use convex::MAX_PIECE_VERTICES;
+pub use hand::{HandGeometry, HandParts};
+pub use scene::GraspScene;
 
 use nalgebra::{Matrix3, Vector3};
 use parry3d::math::{Mat3, Pose as PPose, Rot3, Vector as PVec};
@@ -48,12 +51,12 @@ use parry3d::query::details::{
     contact_support_map_support_map,
 };
 use parry3d::query::{ClosestPoints, ShapeCastOptions};
-use parry3d::shape::Cuboid;
+use parry3d::shape::SupportMap;
 
 use crate::camera::Pose;
 use crate::error::{Error, Result};
 use crate::parallel;
-use hand::{HandBoxes, TcpBox};
+use hand::Hand;
 
 /// How a grasp was judged ([`GraspLabel::reason`]); the `u8` codes cross to Python.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -113,11 +116,9 @@ pub struct GraspLabel {
     pub reason: Reason,
 }
 
-/// The hand and the execution it is labelled for.
+/// The execution the grasps are labelled for.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LabelParams {
-    /// The gripper's boxes and widest opening (the grasps are executed fully open).
-    pub hand: HandGeometry,
     /// Distance of the pre-grasp pose back along the grasp's z (m).
     pub pregrasp_distance: f64,
     /// Coulomb friction coefficient between fingers and objects: the friction cone's
@@ -137,12 +138,11 @@ impl LabelParams {
     /// # Errors
     /// [`Error::Value`] naming the first bad field.
     pub fn validate(&self) -> Result<()> {
-        self.hand.validate()?;
         let checks = [
             ("pregrasp_distance", self.pregrasp_distance, 0.0, 1.0),
             ("hand_margin", self.hand_margin, 0.0, 0.05),
             ("object_margin", self.object_margin, 0.0, 0.05),
-            ("min_width", self.min_width, 0.0, self.hand.max_opening),
+            ("min_width", self.min_width, 0.0, 1.0),
         ];
         for (name, v, lo, hi) in checks {
             if !(v >= lo && v <= hi) {
@@ -160,19 +160,17 @@ impl LabelParams {
     }
 }
 
-/// Labels grasps on a [`GraspScene`] for a hand ([`LabelParams`]).
+/// Labels grasps of a hand ([`HandParts`]) on a [`GraspScene`].
 #[derive(Debug, Clone)]
 pub struct GraspLabeller {
     scene: GraspScene,
     params: LabelParams,
-    boxes: HandBoxes,
-    swept: [Cuboid; 6],
-    pads: [Cuboid; 2],
+    hand: Hand,
     cos_cone: f64,
 }
 
 /// What a closing finger meets first: the object's index and the contact normal out of
-/// the pad (TCP axes).
+/// the finger (TCP axes).
 type Closure = Option<(usize, [f32; 3])>;
 
 /// A piece near the hand, with its object's pose in the TCP frame.
@@ -185,7 +183,7 @@ struct Near {
 }
 
 impl Near {
-    /// The piece's object pose in the frame of a box centred at `at` (TCP axes), in
+    /// The piece's object pose in the TCP frame moved to `at` (TCP axes), in
     /// millimetres.
     fn pose_from(&self, at: &[f64; 3]) -> PPose {
         let t = (self.translation - Vector3::from(*at)) * MM;
@@ -198,24 +196,6 @@ fn rot_to_parry(r: &Matrix3<f64>) -> Rot3 {
     Rot3::from_mat3(&Mat3::from_cols(col(0), col(1), col(2))).normalize()
 }
 
-/// A box as a parry cuboid, in millimetres.
-fn cuboid(b: &TcpBox) -> Cuboid {
-    Cuboid::new(PVec::new(
-        (b.half[0] * MM) as f32,
-        (b.half[1] * MM) as f32,
-        (b.half[2] * MM) as f32,
-    ))
-}
-
-/// World z of the lowest point of `b` with the TCP at `tcp2world`.
-fn lowest_z(tcp2world: &Pose, b: &TcpBox) -> f64 {
-    let (r, t) = (tcp2world.rotation(), tcp2world.translation());
-    (0..3)
-        .map(|i| r[(2, i)] * b.centre[i] - r[(2, i)].abs() * b.half[i])
-        .sum::<f64>()
-        + t.z
-}
-
 /// parry's queries run in millimetres: its GJK tolerances are absolute, and in f32 on
 /// centimetre-sized shapes expressed in metres its distances and casts come out
 /// millimetres wrong (a 2.5 cm ball 4 mm from a box measured 7.8 mm away); from
@@ -226,20 +206,29 @@ pub(crate) const MM: f64 = 1000.0;
 const MIN_GRASPS_PER_THREAD: usize = 32;
 
 impl GraspLabeller {
-    /// A labeller for `params`'s hand on `scene`.
+    /// A labeller for `hand` executing grasps as `params` says on `scene`.
     ///
     /// # Errors
-    /// As [`LabelParams::validate`].
-    pub fn new(scene: GraspScene, params: LabelParams) -> Result<Self> {
+    /// As [`LabelParams::validate`]; [`Error::Value`] for a `min_width` beyond
+    /// `hand.max_opening`; a bad hand part as [`GraspScene::add_object`] a bad piece,
+    /// named `hand.left[k]` etc.
+    pub fn new(scene: GraspScene, hand: &HandParts, params: LabelParams) -> Result<Self> {
         params.validate()?;
-        let boxes = params.hand.boxes(params.pregrasp_distance);
-        let atan = params.friction.atan();
+        let hand = Hand::new(hand, params.pregrasp_distance)?;
+        if params.min_width > hand.max_opening {
+            return Err(Error::value(
+                "min_width",
+                params.min_width,
+                format!(
+                    "must be at most the hand's max_opening {}",
+                    hand.max_opening
+                ),
+            ));
+        }
         Ok(Self {
             scene,
-            swept: boxes.swept.each_ref().map(cuboid),
-            pads: boxes.pads.each_ref().map(cuboid),
-            boxes,
-            cos_cone: atan.cos(),
+            hand,
+            cos_cone: params.friction.atan().cos(),
             params,
         })
     }
@@ -282,20 +271,15 @@ impl GraspLabeller {
 
     /// Labels one grasp (see the module documentation).
     pub fn label_one(&self, tcp2world: &Pose) -> GraspLabel {
+        let opening = self.hand.max_opening;
         let fail = |reason| GraspLabel {
             success: false,
-            width: self.params.hand.max_opening as f32,
+            width: opening as f32,
             object: -1,
             reason,
         };
         let p = &self.params;
-        let table = self.scene.table_z();
-        if self
-            .boxes
-            .swept
-            .iter()
-            .any(|b| lowest_z(tcp2world, b) < table + p.hand_margin)
-        {
+        if self.touches_table(tcp2world) {
             return fail(Reason::Collision);
         }
         let margin = p.hand_margin + p.object_margin;
@@ -303,14 +287,14 @@ impl GraspLabeller {
         for n in &near {
             let piece = &self.scene.pieces[n.piece];
             let reach = piece.radius + margin;
-            for (b, shape) in self.boxes.swept.iter().zip(&self.swept) {
-                if !b.near(&n.centre, reach) {
+            let pos12 = n.pose_from(&[0.0; 3]);
+            for part in &self.hand.swept {
+                if !part.bound.near(&n.centre, reach) {
                     continue;
                 }
-                let pos12 = n.pose_from(&b.centre);
                 let touching = closest_points_support_map_support_map(
                     &pos12,
-                    shape,
+                    &part.hull,
                     &piece.hull,
                     (margin * MM) as f32,
                 );
@@ -327,7 +311,7 @@ impl GraspLabeller {
         if a != b {
             return fail(Reason::TwoObjects);
         }
-        let width = (p.hand.max_opening - d_left - d_right).max(0.0);
+        let width = (opening - d_left - d_right).max(0.0);
         if width < p.min_width {
             return fail(Reason::Narrow);
         }
@@ -343,6 +327,23 @@ impl GraspLabeller {
         }
     }
 
+    /// Whether a swept part of the hand comes within the hand's margin of the table.
+    fn touches_table(&self, tcp2world: &Pose) -> bool {
+        let r = tcp2world.rotation();
+        let rz = [r[(2, 0)], r[(2, 1)], r[(2, 2)]];
+        let tz = tcp2world.translation().z;
+        let limit = self.scene.table_z() + self.params.hand_margin;
+        // World −z in the TCP frame: the direction of each part's lowest point.
+        let down = PVec::new(-rz[0] as f32, -rz[1] as f32, -rz[2] as f32);
+        self.hand.swept.iter().any(|part| {
+            if part.bound.lowest_z(&rz, tz) >= limit {
+                return false;
+            }
+            let low = part.hull.local_support_point(down);
+            let z = (0..3).map(|i| rz[i] * f64::from(low[i])).sum::<f64>() / MM + tz;
+            z < limit
+        })
+    }
     /// The pieces whose bounding ball comes within `margin` of the hand's reach.
     fn near_pieces(&self, tcp2world: &Pose, margin: f64) -> Vec<Near> {
         let world2tcp = tcp2world.inverse();
@@ -351,7 +352,7 @@ impl GraspLabeller {
         for (k, piece) in self.scene.pieces.iter().enumerate() {
             let c = world2tcp.transform_point(&piece.centre);
             let centre = [c.x, c.y, c.z];
-            if !self.boxes.bound.near(&centre, piece.radius + margin) {
+            if !self.hand.bound.near(&centre, piece.radius + margin) {
                 continue;
             }
             // Pieces of one object are stored together: convert its pose once.
@@ -379,54 +380,53 @@ impl GraspLabeller {
     /// the whole opening, and how far it travels to get there.
     fn closure(&self, near: &[Near], side: usize, margin: f64) -> (Closure, f64) {
         let dir = if side == 0 { -1.0 } else { 1.0 };
-        let pad = &self.boxes.pads[side];
-        let reach = self.params.hand.max_opening;
+        let reach = self.hand.max_opening;
         let mut best = reach;
-        let swept = pad.swept(1, dir * reach);
+        let mut first: Option<(usize, usize)> = None;
         let vel12 = PVec::new(0.0, -dir as f32, 0.0);
-        let mut first: Option<usize> = None;
-        for (k, n) in near.iter().enumerate() {
-            let piece = &self.scene.pieces[n.piece];
-            if !swept.near(&n.centre, piece.radius + margin) {
-                continue;
-            }
-            let options = ShapeCastOptions {
-                max_time_of_impact: (reach * MM) as f32,
-                target_distance: (margin * MM) as f32,
-                stop_at_penetration: true,
-                compute_impact_geometry_on_penetration: false,
-            };
-            let pos12 = n.pose_from(&pad.centre);
-            let hit = cast_shapes_support_map_support_map(
-                &pos12,
-                vel12,
-                &self.pads[side],
-                &piece.hull,
-                options,
-            );
-            if let Some(hit) = hit {
-                let travel = f64::from(hit.time_of_impact) / MM;
-                if travel < best {
-                    (best, first) = (travel, Some(k));
+        let options = ShapeCastOptions {
+            max_time_of_impact: (reach * MM) as f32,
+            target_distance: (margin * MM) as f32,
+            stop_at_penetration: true,
+            compute_impact_geometry_on_penetration: false,
+        };
+        for (j, part) in self.hand.fingers[side].iter().enumerate() {
+            let swept = part.bound.swept(1, dir * reach);
+            for (k, n) in near.iter().enumerate() {
+                let piece = &self.scene.pieces[n.piece];
+                if !swept.near(&n.centre, piece.radius + margin) {
+                    continue;
+                }
+                let hit = cast_shapes_support_map_support_map(
+                    &n.pose_from(&[0.0; 3]),
+                    vel12,
+                    &part.hull,
+                    &piece.hull,
+                    options,
+                );
+                if let Some(hit) = hit {
+                    let travel = f64::from(hit.time_of_impact) / MM;
+                    if travel < best {
+                        (best, first) = (travel, Some((j, k)));
+                    }
                 }
             }
         }
-        let Some(k) = first else {
+        let Some((j, k)) = first else {
             return (None, best);
         };
         // The cast's own normal is the last direction its ray advanced along, not the
-        // contact normal; the closest points of the pad where it stops and the piece
+        // contact normal; the closest points of the finger where it stops and the piece
         // give the normal as the physics engine computes it.
         let n = &near[k];
         let piece = &self.scene.pieces[n.piece];
-        let stop = [pad.centre[0], pad.centre[1] + dir * best, pad.centre[2]];
         let normal = contact_support_map_support_map(
-            &n.pose_from(&stop),
-            &self.pads[side],
+            &n.pose_from(&[0.0, dir * best, 0.0]),
+            &self.hand.fingers[side][j].hull,
             &piece.hull,
             ((2.0 * margin + 1e-3) * MM) as f32,
         )
-        .map_or([0.0, -dir as f32, 0.0].map(|v| -v), |c| {
+        .map_or([0.0, dir as f32, 0.0], |c| {
             [c.normal1.x, c.normal1.y, c.normal1.z]
         });
         (Some((piece.object, normal)), best)

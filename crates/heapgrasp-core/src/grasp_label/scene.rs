@@ -5,15 +5,11 @@
 //! table is the half-space below the plane `z = table_z`.
 
 use nalgebra::Point3;
-use parry3d::math::Vector as PVec;
 use parry3d::shape::ConvexPolyhedron;
 
-use super::MM;
+use super::convex::convex_hull;
 use crate::camera::Pose;
 use crate::error::{Error, Result};
-
-/// Most vertices one piece may have (a collision mesh is a few thousand at most).
-pub const MAX_PIECE_VERTICES: usize = 1 << 20;
 
 /// One object: its id and pose.
 #[derive(Debug, Clone)]
@@ -103,7 +99,12 @@ impl GraspScene {
         let mut built = Vec::with_capacity(pieces.len());
         for (k, &flat) in pieces.iter().enumerate() {
             let name = format!("pieces[{k}]");
-            let (hull, centre, radius) = hull_of(&name, flat)?;
+            let (hull, lo, hi) = convex_hull(&name, flat)?;
+            let centre = Point3::from(std::array::from_fn(|i| 0.5 * (lo[i] + hi[i])));
+            let radius = flat
+                .chunks_exact(3)
+                .map(|p| (Point3::new(p[0], p[1], p[2]) - centre).norm())
+                .fold(0.0f64, f64::max);
             built.push(Piece {
                 object,
                 hull,
@@ -115,100 +116,4 @@ impl GraspScene {
         self.pieces.extend(built);
         Ok(())
     }
-}
-
-/// The convex hull of a flat `(V, 3)` vertex array, with a ball around it (centre in
-/// the array's frame, radius).
-fn hull_of(name: &str, flat: &[f64]) -> Result<(ConvexPolyhedron, Point3<f64>, f64)> {
-    if !flat.len().is_multiple_of(3) || flat.is_empty() {
-        return Err(Error::shape(
-            name,
-            "(V, 3) with V >= 4",
-            format!("{} values", flat.len()),
-        ));
-    }
-    if flat.len() / 3 > MAX_PIECE_VERTICES {
-        return Err(Error::shape(
-            name,
-            format!("(V, 3) with V <= {MAX_PIECE_VERTICES}"),
-            format!("({}, 3)", flat.len() / 3),
-        ));
-    }
-    if let Some(i) = flat.iter().position(|x| !x.is_finite()) {
-        return Err(Error::NonFinite {
-            name: name.to_owned(),
-            position: format!("[{}, {}]", i / 3, i % 3),
-        });
-    }
-    let pts: Vec<Point3<f64>> = flat
-        .chunks_exact(3)
-        .map(|c| Point3::new(c[0], c[1], c[2]))
-        .collect();
-    let (lo, hi) = pts.iter().fold(
-        ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
-        |(lo, hi), p| {
-            (
-                std::array::from_fn(|i| lo[i].min(p[i])),
-                std::array::from_fn(|i| hi[i].max(p[i])),
-            )
-        },
-    );
-    let centre = Point3::from(std::array::from_fn(|i| 0.5 * (lo[i] + hi[i])));
-    let radius = pts
-        .iter()
-        .map(|p| (p - centre).norm())
-        .fold(0.0f64, f64::max);
-    let flat_piece = || Error::Mesh {
-        name: name.to_owned(),
-        reason: "the vertices of a piece must span a volume (not all on one plane)".into(),
-    };
-    if !spans_volume(&pts, radius) {
-        return Err(flat_piece());
-    }
-    // In millimetres (see `MM`); object frames are centred on the object
-    // (sim/objects.py), so f32 keeps these coordinates to well under a micrometre.
-    let local: Vec<PVec> = pts
-        .iter()
-        .map(|p| PVec::new((p.x * MM) as f32, (p.y * MM) as f32, (p.z * MM) as f32))
-        .collect();
-    // parry's quickhull has panicked on near-degenerate inputs in the past; a panic here
-    // must not take the caller down with a valid-looking mesh.
-    let hull = std::panic::catch_unwind(|| ConvexPolyhedron::from_convex_hull(&local))
-        .ok()
-        .flatten()
-        .ok_or_else(flat_piece)?;
-    Ok((hull, centre, radius))
-}
-
-/// Whether points span a volume: the largest tetrahedron on four extreme points is
-/// thicker than a micrometre relative to the points' size.
-fn spans_volume(pts: &[Point3<f64>], radius: f64) -> bool {
-    if pts.len() < 4 || !(radius > 1e-9) {
-        return false;
-    }
-    let a = pts[0];
-    let Some(b) = pts
-        .iter()
-        .max_by(|p, q| (*p - a).norm_squared().total_cmp(&(*q - a).norm_squared()))
-    else {
-        return false;
-    };
-    let ab = b - a;
-    let Some(c) = pts.iter().max_by(|p, q| {
-        ab.cross(&(*p - a))
-            .norm_squared()
-            .total_cmp(&ab.cross(&(*q - a)).norm_squared())
-    }) else {
-        return false;
-    };
-    let n = ab.cross(&(c - a));
-    if !(n.norm() > 1e-12 * radius * radius) {
-        return false;
-    }
-    let n = n.normalize();
-    let thickness = pts
-        .iter()
-        .map(|p| n.dot(&(p - a)).abs())
-        .fold(0.0, f64::max);
-    thickness > 1e-6 * radius.max(1e-3)
 }

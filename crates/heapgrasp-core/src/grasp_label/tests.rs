@@ -20,7 +20,6 @@ fn panda() -> HandGeometry {
 
 fn params() -> LabelParams {
     LabelParams {
-        hand: panda(),
         pregrasp_distance: 0.05,
         friction: 1.0,
         hand_margin: 0.001,
@@ -79,7 +78,8 @@ fn sphere_piece(r: f64) -> Vec<f64> {
 }
 
 fn labeller(objects: &[(i32, [f64; 3], Vec<f64>)]) -> GraspLabeller {
-    let mut l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), params()).unwrap();
+    let mut l =
+        GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), params()).unwrap();
     for (id, at, piece) in objects {
         l.add_object(*id, translation(*at), &[piece]).unwrap();
     }
@@ -182,7 +182,8 @@ fn a_sphere_is_held_through_its_centre_and_not_past_the_friction_cone() {
     // A larger friction coefficient holds it.
     let mut grippy = params();
     grippy.friction = 2.0;
-    let mut l2 = GraspLabeller::new(GraspScene::new(0.0).unwrap(), grippy).unwrap();
+    let mut l2 =
+        GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), grippy).unwrap();
     l2.add_object(3, translation([0.0, 0.0, r]), &[&sphere_piece(r)])
         .unwrap();
     assert_eq!(l2.label_one(&tip_at(55.0)).reason, Reason::Success);
@@ -208,7 +209,7 @@ fn a_thin_sheet_closes_too_narrow() {
     assert_eq!(label.reason, Reason::Success, "{label:?}");
     let mut p = params();
     p.min_width = 0.005;
-    let mut l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), p).unwrap();
+    let mut l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), p).unwrap();
     l.add_object(
         1,
         translation([0.0, 0.0, 0.03]),
@@ -281,15 +282,30 @@ fn bad_parameters_and_pieces_are_errors() {
     let mut p = params();
     p.friction = f64::NAN;
     assert!(matches!(
-        GraspLabeller::new(GraspScene::new(0.0).unwrap(), p),
+        GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), p),
         Err(Error::Value { name, .. }) if name == "friction"
     ));
-    let mut p = params();
-    p.hand.finger_split = 0.01;
+    let mut hand = panda();
+    hand.finger_split = 0.01;
     assert!(matches!(
-        GraspLabeller::new(GraspScene::new(0.0).unwrap(), p),
+        hand.validate(),
         Err(Error::Value { name, .. }) if name == "hand.finger_split"
     ));
+    let mut parts = panda().parts();
+    parts.right.clear();
+    assert!(matches!(
+        GraspLabeller::new(GraspScene::new(0.0).unwrap(), &parts, params()),
+        Err(Error::Value { name, .. }) if name == "hand.right"
+    ));
+    let mut parts = panda().parts();
+    parts.left[1] = vec![0.0; 12];
+    assert!(matches!(
+        GraspLabeller::new(GraspScene::new(0.0).unwrap(), &parts, params()),
+        Err(Error::Mesh { name, .. }) if name == "hand.left[1]"
+    ));
+    let mut p = params();
+    p.min_width = 0.09;
+    assert!(GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), p).is_err());
     assert!(GraspScene::new(f64::INFINITY).is_err());
     let mut s = GraspScene::new(0.0).unwrap();
     let flat = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0];
