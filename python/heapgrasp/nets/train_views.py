@@ -24,9 +24,7 @@ metric uses the exact labels.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import json
 import math
 import os
 import time
@@ -42,6 +40,18 @@ import torch.nn.functional as F
 from torch import Tensor
 
 from heapgrasp.nets.models import ViewNet
+from heapgrasp.nets.training import (
+    CHECKPOINT,
+    Panel,
+    TrainSetupError,
+    finish_epoch,
+    load_best,
+    plot_history,
+    read_network,
+    save_network,
+    start_run,
+    write_csv,
+)
 from heapgrasp.nets.view_data import (
     SYMMETRIES,
     ViewDataError,
@@ -78,15 +88,8 @@ F64 = npt.NDArray[np.float64]
 #: ``"format"`` in the header of a trained view network's safetensors file.
 NETWORK_FORMAT = "heapgrasp-view-network"
 _CHECKPOINT_FORMAT = "heapgrasp-view-train-checkpoint"
-#: Checkpoint file name inside the output directory.
-CHECKPOINT = "checkpoint.safetensors"
-_BEST = "best.safetensors"
 #: Losses :func:`train` offers.
 LOSSES = ("bce", "mse")
-
-
-class TrainSetupError(ValueError):
-    """Training cannot start as asked (wrong split, clashing settings on resume, ...)."""
 
 
 # --------------------------------------------------------------------------- metrics
@@ -295,101 +298,9 @@ def _identity(config: TrainConfig, train: ViewDataset, val: ViewDataset) -> dict
     }
 
 
-def _save_atomic(tensors: dict[str, Tensor], path: Path, metadata: dict[str, str]) -> None:
-    from safetensors.torch import save_file
-
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        plain = {k: v.detach().cpu().contiguous() for k, v in tensors.items()}
-        save_file(plain, str(tmp), metadata=metadata)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def _read_safetensors(path: Path, what: str) -> tuple[dict[str, Tensor], dict[str, str]]:
-    from safetensors import SafetensorError, safe_open
-
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            meta = dict(f.metadata() or {})
-            tensors = {k: f.get_tensor(k) for k in f.keys()}
-    except FileNotFoundError:
-        raise
-    except (OSError, SafetensorError, ValueError) as exc:
-        raise TrainSetupError(f"{path}: not a readable {what} ({exc})") from None
-    return tensors, meta
-
-
-def _save_checkpoint(
-    path: Path,
-    net: ViewNet,
-    opt: torch.optim.Optimizer,
-    state: dict[str, Any],
-) -> None:
-    tensors = {f"model.{k}": v for k, v in net.state_dict().items()}
-    sd = opt.state_dict()
-    for pid, entry in sd["state"].items():
-        for key, value in entry.items():
-            tensors[f"optimizer.{pid}.{key}"] = torch.as_tensor(value)
-    tensors["rng.torch"] = torch.get_rng_state()
-    full = {**state, "param_groups": sd["param_groups"], "hparams": net.hparams()}
-    _save_atomic(tensors, path, {"format": _CHECKPOINT_FORMAT, "state": json.dumps(full)})
-
-
-def _load_checkpoint(path: Path, net: ViewNet, opt: torch.optim.Optimizer) -> dict[str, Any]:
-    tensors, meta = _read_safetensors(path, "training checkpoint")
-    if meta.get("format") != _CHECKPOINT_FORMAT:
-        raise TrainSetupError(f"{path}: not a view network training checkpoint")
-    try:
-        state = json.loads(meta["state"])
-    except (KeyError, json.JSONDecodeError) as exc:
-        raise TrainSetupError(f"{path}: checkpoint state unreadable ({exc})") from None
-    model = {k[len("model.") :]: v for k, v in tensors.items() if k.startswith("model.")}
-    try:
-        net.load_state_dict(model, strict=True)
-        opt_state: dict[int, dict[str, Tensor]] = {}
-        for key, value in tensors.items():
-            if key.startswith("optimizer."):
-                _, pid, name = key.split(".", 2)
-                opt_state.setdefault(int(pid), {})[name] = value
-        opt.load_state_dict({"state": opt_state, "param_groups": state["param_groups"]})
-    except (RuntimeError, KeyError, ValueError) as exc:
-        raise TrainSetupError(f"{path}: checkpoint does not fit this network ({exc})") from None
-    torch.set_rng_state(tensors["rng.torch"])
-    return dict(state)
-
-
-def _resume_mismatch(saved: Mapping[str, Any], wanted: Mapping[str, Any]) -> list[str]:
-    diff = []
-    for key in ("config", "geometry"):
-        a, b = saved.get(key, {}), wanted[key]
-        diff += [f"{key}.{k}: {a.get(k)!r} there, {b[k]!r} now" for k in b if a.get(k) != b[k]]
-    for key in ("train", "val"):
-        if saved.get(key) != wanted[key]:
-            diff.append(f"{key} data: {saved.get(key)!r} there, {wanted[key]!r} now")
-    return diff
-
-
-def _write_csv(path: Path, history: list[dict[str, float]]) -> None:
-    if not history:
-        return
-    fields = list(history[0])
-    tmp = path.with_name(f".{path.name}.tmp")
-    with tmp.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
-        w.writeheader()
-        for row in history:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
-    os.replace(tmp, path)
-
-
-def _plot(path: Path, history: list[dict[str, float]]) -> None:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    epochs = [row["epoch"] for row in history]
-    panels = [
+def _panels(row: Mapping[str, float]) -> list[Panel]:
+    """The plot's panels for an epoch row's columns."""
+    panels: list[Panel] = [
         ("loss", [("train_loss", "train"), ("val_loss", "validation")]),
         (
             "Spearman ρ (validation)",
@@ -397,24 +308,12 @@ def _plot(path: Path, history: list[dict[str, float]]) -> None:
         ),
         ("top-1 regret (validation)", [("val_regret_mean", "mean")]),
     ]
-    matches = [k for k in history[0] if k.startswith("val_eq18_match")]
+    matches = [k for k in row if k.startswith("val_eq18_match")]
     if matches:
         panels.append(
             ("eq. 18 = oracle (validation)", [(k, k[len("val_eq18_match_") :]) for k in matches])
         )
-    fig = Figure(figsize=(4.0 * len(panels), 3.2), layout="constrained")
-    FigureCanvasAgg(fig)
-    for i, (title, series) in enumerate(panels):
-        ax = fig.add_subplot(1, len(panels), i + 1)
-        for key, label in series:
-            ax.plot(epochs, [row.get(key, math.nan) for row in history], marker=".", label=label)
-        ax.set_title(title)
-        ax.set_xlabel("epoch")
-        ax.grid(alpha=0.3)
-        ax.legend()
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=100)
-    os.replace(tmp, path)
+    return panels
 
 
 def train(
@@ -495,8 +394,6 @@ def train(
         )
 
     out_dir = Path(out)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    ckpt = out_dir / CHECKPOINT
     geo = train_data.geometry
     torch.manual_seed(config.seed)
     net = ViewNet(geo.resolution, geo.view_shape, in_channels=config.in_channels)
@@ -509,35 +406,17 @@ def train(
         net.head.bias.fill_(math.log(mean / (1.0 - mean)))
     net.to(device)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
-    identity = _identity(config, train_data, val_data)
-    state: dict[str, Any] = {
-        **identity,
-        "epoch": 0,
-        "history": [],
-        "best_epoch": 0,
-        "best_value": None,
-        "seconds": 0.0,
-    }
-    if ckpt.exists() and not resume:
-        raise TrainSetupError(
-            f"{out_dir} holds a training run ({CHECKPOINT}); pass --resume to continue it "
-            "or choose another output directory"
-        )
-    if resume:
-        if not ckpt.exists():
-            raise TrainSetupError(f"--resume: no {CHECKPOINT} in {out_dir} to resume")
-        saved = _load_checkpoint(ckpt, net, opt)
-        diff = _resume_mismatch(saved, identity)
-        if diff:
-            raise TrainSetupError(
-                f"{ckpt} was made with other settings or data; resume with the same ones "
-                f"or train into another directory ({'; '.join(diff)})"
-            )
-        state.update(
-            {k: saved[k] for k in ("epoch", "history", "best_epoch", "best_value", "seconds")}
-        )
-        if log:
-            log(f"resuming {out_dir} after epoch {state['epoch']} of {config.epochs}")
+    state = start_run(
+        out_dir,
+        net,
+        opt,
+        _identity(config, train_data, val_data),
+        resume=resume,
+        fmt=_CHECKPOINT_FORMAT,
+        what="view network",
+        epochs=config.epochs,
+        log=log,
+    )
 
     def default_eval(n: ViewNet, d: ViewDataset) -> dict[str, float]:
         return evaluate(n, d, loss=config.loss, device=device)
@@ -584,25 +463,18 @@ def train(
             **{f"val_{k}": float(v) for k, v in metrics.items() if k != "samples"},
             "seconds": round(seconds, 3),
         }
-        state["history"].append(row)
-        state["seconds"] = float(state["seconds"]) + seconds
-        value = row["val_spearman_median"]
-        best = state["best_value"]
-        if math.isfinite(value) and (best is None or value > best):
-            state["best_value"], state["best_epoch"] = value, epoch + 1
-            _save_atomic(
-                dict(net.state_dict()),
-                out_dir / _BEST,
-                {
-                    "format": NETWORK_FORMAT,
-                    "hparams": json.dumps(net.hparams()),
-                    "epoch": str(epoch + 1),
-                },
-            )
-        state["epoch"] = epoch + 1
-        _save_checkpoint(ckpt, net, opt, state)
-        _write_csv(out_dir / "metrics.csv", state["history"])
-        _plot(out_dir / "metrics.png", state["history"])
+        finish_epoch(
+            out_dir,
+            net,
+            opt,
+            state,
+            row,
+            value=row["val_spearman_median"],
+            higher_is_better=True,
+            fmt=_CHECKPOINT_FORMAT,
+            network_format=NETWORK_FORMAT,
+            panels=_panels(row),
+        )
         if log:
             log(
                 f"epoch {epoch + 1}/{config.epochs}: train loss {row['train_loss']:.4f}, "
@@ -611,13 +483,9 @@ def train(
                 f"({seconds:.1f} s)"
             )
     if state["history"]:  # again: a run stopped between its checkpoint and these
-        _write_csv(out_dir / "metrics.csv", state["history"])
-        _plot(out_dir / "metrics.png", state["history"])
-    best_path = out_dir / _BEST
-    if best_path.exists():
-        weights, _ = _read_safetensors(best_path, "weights file")
-        net.load_state_dict(weights, strict=True)
-    net.eval()
+        write_csv(out_dir / "metrics.csv", state["history"])
+        plot_history(out_dir / "metrics.png", state["history"], _panels(state["history"][0]))
+    load_best(out_dir, net)
     return TrainResult(
         net=net,
         best_epoch=int(state["best_epoch"]) or int(state["epoch"]),
@@ -635,44 +503,12 @@ def save_view_network(
     """Writes ``PATH`` (``.safetensors``: the state dict, with ``format`` and ``hparams``
     in its header) and the model card ``PATH`` with suffix ``.json`` (``card`` plus the
     architecture). Returns both paths."""
-    weights = Path(path)
-    if weights.suffix != ".safetensors":
-        raise ValueError(f"{weights}: the weights file must end in .safetensors")
-    weights.parent.mkdir(parents=True, exist_ok=True)
-    hparams = net.hparams()
-    _save_atomic(
-        dict(net.state_dict()),
-        weights,
-        {"format": NETWORK_FORMAT, "hparams": json.dumps(hparams)},
-    )
-    meta = weights.with_suffix(".json")
-    doc = {"format": NETWORK_FORMAT, "weights": weights.name, "architecture": hparams, **card}
-    tmp = meta.with_name(f".{meta.name}.tmp")
-    tmp.write_text(json.dumps(doc, indent=2, default=_json_default) + "\n")
-    os.replace(tmp, meta)
-    return weights, meta
-
-
-def _json_default(value: object) -> object:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+    return save_network(net, path, card, fmt=NETWORK_FORMAT)
 
 
 def load_view_network(path: str | os.PathLike[str], device: str = "cpu") -> ViewNet:
     """The :class:`ViewNet` of a ``.safetensors`` file written by :func:`train` or
     :func:`save_view_network`, in eval mode (TrainSetupError when the file is not one)."""
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"view network weights not found: {p}")
-    tensors, meta = _read_safetensors(p, "view network weights file")
-    if meta.get("format") != NETWORK_FORMAT:
-        raise TrainSetupError(f"{p}: not a view network weights file (format)")
-    try:
-        net = ViewNet(**json.loads(meta["hparams"]))
-        net.load_state_dict(tensors, strict=True)
-    except (KeyError, TypeError, ValueError, RuntimeError, json.JSONDecodeError) as exc:
-        raise TrainSetupError(f"{p}: weights do not make a view network ({exc})") from None
+    net = read_network(path, ViewNet, fmt=NETWORK_FORMAT, what="view network")
+    assert isinstance(net, ViewNet)
     return net.to(device).eval()

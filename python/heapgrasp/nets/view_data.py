@@ -27,12 +27,10 @@ format is read here from its documented layout.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 import zipfile
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,6 +41,7 @@ import torch
 from torch import Tensor
 
 from heapgrasp.geometry.motion import ViewSphere
+from heapgrasp.nets.datasets import read_manifest, read_shards
 
 __all__ = [
     "DATA_FORMAT",
@@ -202,34 +201,6 @@ class ViewDataset:
         return dataclasses.replace(self, **arrays)
 
 
-def _read_manifest(path: Path) -> dict[str, Any]:
-    if not path.exists():
-        raise ViewDataError(f"{path}: no such directory")
-    if not path.is_dir():
-        raise ViewDataError(f"{path}: not a directory (expected a view dataset directory)")
-    file = path / "manifest.json"
-    try:
-        manifest = json.loads(file.read_text())
-    except FileNotFoundError:
-        raise ViewDataError(
-            f"{path}: not a view dataset (no manifest.json; write one with "
-            f"'heapgrasp data views {path}')"
-        ) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ViewDataError(f"{file}: not a readable manifest ({exc})") from None
-    if not isinstance(manifest, dict) or manifest.get("format") != DATA_FORMAT:
-        raise ViewDataError(f"{file}: not a view dataset manifest (format != {DATA_FORMAT!r})")
-    version = manifest.get("version")
-    if version != _DATA_VERSION:
-        raise ViewDataError(
-            f"{file}: dataset format version {version!r}; this heapgrasp reads {_DATA_VERSION}"
-        )
-    for key, typ in (("split", str), ("config", dict), ("shards", dict)):
-        if not isinstance(manifest.get(key), typ):
-            raise ViewDataError(f"{file}: {key!r} missing or not a {typ.__name__}")
-    return manifest
-
-
 def _load_shard(file: Path, expected: int, geo: DataGeometry) -> dict[str, np.ndarray] | None:
     r, (u, v) = geo.resolution, geo.view_shape
     shapes = {
@@ -285,18 +256,22 @@ def load_view_dataset(path: str | os.PathLike[str], *, workers: int = 1) -> View
     or when it holds no sample.
     """
     root = Path(path)
-    manifest = _read_manifest(root)
+    manifest = read_manifest(
+        root,
+        fmt=DATA_FORMAT,
+        version=_DATA_VERSION,
+        what="view dataset",
+        command="heapgrasp data views",
+        error=ViewDataError,
+    )
     geo = DataGeometry.from_config(manifest["config"], f"{root / 'manifest.json'}")
-    entries: list[tuple[Path, int]] = []
-    for name, entry in sorted(manifest["shards"].items()):
-        samples = entry.get("samples") if isinstance(entry, dict) else None
-        if not isinstance(samples, int) or isinstance(samples, bool) or samples < 0:
-            raise ViewDataError(f"{root / 'manifest.json'}: shard {name!r} has no sample count")
-        if Path(name).name != name:
-            raise ViewDataError(f"{root / 'manifest.json'}: shard name {name!r} is not a file")
-        entries.append((root / name, samples))
-    with ThreadPoolExecutor(max(1, workers)) as pool:
-        shards = [s for s in pool.map(lambda e: _load_shard(e[0], e[1], geo), entries) if s]
+    shards = read_shards(
+        root,
+        manifest,
+        lambda file, n: _load_shard(file, n, geo),
+        workers=workers,
+        error=ViewDataError,
+    )
     if not shards:
         raise ViewDataError(f"{root}: the dataset holds no sample")
     arrays = {name: np.concatenate([s[name] for s in shards]) for name in ARRAYS}

@@ -1,0 +1,78 @@
+"""Reading a dataset directory of :mod:`heapgrasp.data.shards` (``manifest.json`` and
+``shard-NNNNN.npz``), as the view and grasp datasets share it.
+
+The writers sit above this package (:mod:`heapgrasp.data`), so the layout is read here
+from its documented form: a manifest with ``format``, ``version``, ``split``,
+``config`` and ``shards`` (``{file name: {"samples": n, ...}}``).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any, TypeVar
+
+__all__ = ["read_manifest", "read_shards"]
+
+_T = TypeVar("_T")
+
+
+def read_manifest(
+    path: Path,
+    *,
+    fmt: str,
+    version: int,
+    what: str,
+    command: str,
+    error: type[Exception],
+) -> dict[str, Any]:
+    """The manifest of the ``what`` dataset directory ``path`` (format ``fmt``, version
+    ``version``), checked; ``error`` naming the directory or file and the problem
+    otherwise (``command`` is the one that writes such a dataset, for the hint)."""
+    if not path.exists():
+        raise error(f"{path}: no such directory")
+    if not path.is_dir():
+        raise error(f"{path}: not a directory (expected a {what} directory)")
+    file = path / "manifest.json"
+    try:
+        manifest = json.loads(file.read_text())
+    except FileNotFoundError:
+        raise error(
+            f"{path}: not a {what} (no manifest.json; write one with '{command} {path}')"
+        ) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise error(f"{file}: not a readable manifest ({exc})") from None
+    if not isinstance(manifest, dict) or manifest.get("format") != fmt:
+        raise error(f"{file}: not a {what} manifest (format != {fmt!r})")
+    got = manifest.get("version")
+    if got != version:
+        raise error(f"{file}: dataset format version {got!r}; this heapgrasp reads {version}")
+    for key, typ in (("split", str), ("config", dict), ("shards", dict)):
+        if not isinstance(manifest.get(key), typ):
+            raise error(f"{file}: {key!r} missing or not a {typ.__name__}")
+    return manifest
+
+
+def read_shards(
+    root: Path,
+    manifest: dict[str, Any],
+    load: Callable[[Path, int], _T | None],
+    *,
+    workers: int,
+    error: type[Exception],
+) -> list[_T]:
+    """``load(file, samples)`` of every shard the manifest lists, in name order, on
+    ``workers`` threads (decompression releases the GIL); the shards that hold no
+    sample (``load`` returns None) left out."""
+    entries: list[tuple[Path, int]] = []
+    for name, entry in sorted(manifest["shards"].items()):
+        samples = entry.get("samples") if isinstance(entry, dict) else None
+        if not isinstance(samples, int) or isinstance(samples, bool) or samples < 0:
+            raise error(f"{root / 'manifest.json'}: shard {name!r} has no sample count")
+        if Path(name).name != name:
+            raise error(f"{root / 'manifest.json'}: shard name {name!r} is not a file")
+        entries.append((root / name, samples))
+    with ThreadPoolExecutor(max(1, workers)) as pool:
+        return [s for s in pool.map(lambda e: load(e[0], e[1]), entries) if s is not None]

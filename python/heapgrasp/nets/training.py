@@ -1,0 +1,336 @@
+"""What the trainers of the networks share (:mod:`heapgrasp.nets.train_views`,
+:mod:`heapgrasp.nets.train_grasps`): safetensors files written atomically, the training
+checkpoint and its exact resume, the per-epoch CSV and plot, and a trained network's
+weights file with its model card.
+
+**Checkpoint.** ``OUT/checkpoint.safetensors`` after every epoch: the model's tensors
+(``model.*``), Adam's state (``optimizer.<param>.<name>``) and PyTorch's RNG state
+(``rng.torch``); its header holds the format name and, as JSON, the run's state (the
+settings and data it must be resumed with, the epochs done, the history, the best
+epoch, the optimizer's param groups, the network's architecture). Every random draw of
+a trainer comes from PyTorch's RNG (restored) or from generators seeded by ``(seed,
+epoch)``, so a resumed run ends with the weights of an uninterrupted one, bit for bit.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+__all__ = [
+    "BEST",
+    "CHECKPOINT",
+    "TrainSetupError",
+    "finish_epoch",
+    "json_default",
+    "load_best",
+    "plot_history",
+    "read_network",
+    "read_safetensors",
+    "save_atomic",
+    "save_network",
+    "start_run",
+    "write_csv",
+]
+
+#: Checkpoint file name inside the output directory.
+CHECKPOINT = "checkpoint.safetensors"
+#: The best epoch's weights inside the output directory.
+BEST = "best.safetensors"
+#: ``(title, [(column, label), ...])``: one panel of :func:`plot_history`.
+Panel = tuple[str, Sequence[tuple[str, str]]]
+
+
+class TrainSetupError(ValueError):
+    """Training cannot start as asked (wrong split, clashing settings on resume, ...)."""
+
+
+def _hparams(net: nn.Module) -> dict[str, Any]:
+    """The network's constructor arguments (its ``hparams()``; {} where it has none)."""
+    hparams = getattr(net, "hparams", None)
+    return dict(hparams()) if callable(hparams) else {}
+
+
+# --------------------------------------------------------------------------- files
+
+
+def save_atomic(tensors: Mapping[str, Tensor], path: Path, metadata: dict[str, str]) -> None:
+    """``tensors`` as a safetensors file with ``metadata`` in its header, written to a
+    temporary file and renamed (whole or absent)."""
+    from safetensors.torch import save_file
+
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        plain = {k: v.detach().cpu().contiguous() for k, v in tensors.items()}
+        save_file(plain, str(tmp), metadata=metadata)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def read_safetensors(path: Path, what: str) -> tuple[dict[str, Tensor], dict[str, str]]:
+    """Tensors and header metadata of a safetensors file (TrainSetupError naming the file
+    and ``what`` it should be when it is unreadable; FileNotFoundError when missing)."""
+    from safetensors import SafetensorError, safe_open
+
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            meta = dict(f.metadata() or {})
+            tensors = {k: f.get_tensor(k) for k in f.keys()}
+    except FileNotFoundError:
+        raise
+    except (OSError, SafetensorError, ValueError) as exc:
+        raise TrainSetupError(f"{path}: not a readable {what} ({exc})") from None
+    return tensors, meta
+
+
+def json_default(value: object) -> object:
+    """``json.dumps``'s ``default`` for numpy scalars and paths."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def save_network(
+    net: nn.Module, path: str | os.PathLike[str], card: Mapping[str, Any], *, fmt: str
+) -> tuple[Path, Path]:
+    """Writes ``PATH`` (``.safetensors``: the state dict, with ``format`` = ``fmt`` and
+    ``hparams`` in its header) and the model card ``PATH`` with suffix ``.json`` (``card``
+    plus the architecture). Returns both paths."""
+    weights = Path(path)
+    if weights.suffix != ".safetensors":
+        raise ValueError(f"{weights}: the weights file must end in .safetensors")
+    weights.parent.mkdir(parents=True, exist_ok=True)
+    hparams = _hparams(net)
+    save_atomic(net.state_dict(), weights, {"format": fmt, "hparams": json.dumps(hparams)})
+    meta = weights.with_suffix(".json")
+    doc = {"format": fmt, "weights": weights.name, "architecture": hparams, **card}
+    tmp = meta.with_name(f".{meta.name}.tmp")
+    tmp.write_text(json.dumps(doc, indent=2, default=json_default) + "\n")
+    os.replace(tmp, meta)
+    return weights, meta
+
+
+def read_network(
+    path: str | os.PathLike[str], build: Callable[..., nn.Module], *, fmt: str, what: str
+) -> nn.Module:
+    """The network of a file :func:`save_network` wrote (``build(**hparams)`` with the
+    file's tensors, on the CPU, in eval mode); TrainSetupError when it is not one."""
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{what} weights not found: {p}")
+    tensors, meta = read_safetensors(p, f"{what} weights file")
+    if meta.get("format") != fmt:
+        raise TrainSetupError(f"{p}: not a {what} weights file (format)")
+    try:
+        net = build(**json.loads(meta["hparams"]))
+        net.load_state_dict(tensors, strict=True)
+    except (KeyError, TypeError, ValueError, RuntimeError, json.JSONDecodeError) as exc:
+        raise TrainSetupError(f"{p}: weights do not make a {what} ({exc})") from None
+    return net.eval()
+
+
+# --------------------------------------------------------------------------- checkpoints
+
+
+def _save_checkpoint(
+    path: Path, net: nn.Module, opt: torch.optim.Optimizer, state: dict[str, Any], fmt: str
+) -> None:
+    tensors = {f"model.{k}": v for k, v in net.state_dict().items()}
+    sd = opt.state_dict()
+    for pid, entry in sd["state"].items():
+        for key, value in entry.items():
+            tensors[f"optimizer.{pid}.{key}"] = torch.as_tensor(value)
+    tensors["rng.torch"] = torch.get_rng_state()
+    hparams = _hparams(net)
+    full = {**state, "param_groups": sd["param_groups"], "hparams": hparams}
+    save_atomic(tensors, path, {"format": fmt, "state": json.dumps(full)})
+
+
+def _load_checkpoint(
+    path: Path, net: nn.Module, opt: torch.optim.Optimizer, fmt: str, what: str
+) -> dict[str, Any]:
+    tensors, meta = read_safetensors(path, "training checkpoint")
+    if meta.get("format") != fmt:
+        raise TrainSetupError(f"{path}: not a {what} training checkpoint")
+    try:
+        state = json.loads(meta["state"])
+    except (KeyError, json.JSONDecodeError) as exc:
+        raise TrainSetupError(f"{path}: checkpoint state unreadable ({exc})") from None
+    model = {k[len("model.") :]: v for k, v in tensors.items() if k.startswith("model.")}
+    try:
+        net.load_state_dict(model, strict=True)
+        opt_state: dict[int, dict[str, Tensor]] = {}
+        for key, value in tensors.items():
+            if key.startswith("optimizer."):
+                _, pid, name = key.split(".", 2)
+                opt_state.setdefault(int(pid), {})[name] = value
+        opt.load_state_dict({"state": opt_state, "param_groups": state["param_groups"]})
+    except (RuntimeError, KeyError, ValueError) as exc:
+        raise TrainSetupError(f"{path}: checkpoint does not fit this network ({exc})") from None
+    torch.set_rng_state(tensors["rng.torch"])
+    return dict(state)
+
+
+def _mismatch(saved: Mapping[str, Any], wanted: Mapping[str, Any]) -> list[str]:
+    """What differs between a checkpoint's identity and this run's: dict entries field
+    by field, anything else whole."""
+    diff = []
+    for key, b in wanted.items():
+        a = saved.get(key)
+        if isinstance(b, dict) and isinstance(a, dict):
+            diff += [f"{key}.{k}: {a.get(k)!r} there, {b[k]!r} now" for k in b if a.get(k) != b[k]]
+        elif a != b:
+            diff.append(f"{key}: {a!r} there, {b!r} now")
+    return diff
+
+
+_PROGRESS = ("epoch", "history", "best_epoch", "best_value", "seconds")
+
+
+def start_run(
+    out_dir: Path,
+    net: nn.Module,
+    opt: torch.optim.Optimizer,
+    identity: Mapping[str, Any],
+    *,
+    resume: bool,
+    fmt: str,
+    what: str,
+    epochs: int,
+    log: Callable[[str], None] | None,
+) -> dict[str, Any]:
+    """The state of a training run in ``out_dir``: a fresh one, or with ``resume`` the
+    checkpoint's (the network, optimizer and RNG restored from it).
+
+    ``identity`` (plain JSON: settings, data) must equal the checkpoint's. Raises
+    TrainSetupError when ``out_dir`` holds a run and ``resume`` is off, when there is no
+    checkpoint to resume, or when it was made with another identity (naming what
+    differs).
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    ckpt = out_dir / CHECKPOINT
+    state: dict[str, Any] = {
+        **identity,
+        "epoch": 0,
+        "history": [],
+        "best_epoch": 0,
+        "best_value": None,
+        "seconds": 0.0,
+    }
+    if ckpt.exists() and not resume:
+        raise TrainSetupError(
+            f"{out_dir} holds a training run ({CHECKPOINT}); pass --resume to continue it "
+            "or choose another output directory"
+        )
+    if resume:
+        if not ckpt.exists():
+            raise TrainSetupError(f"--resume: no {CHECKPOINT} in {out_dir} to resume")
+        saved = _load_checkpoint(ckpt, net, opt, fmt, what)
+        diff = _mismatch(saved, identity)
+        if diff:
+            raise TrainSetupError(
+                f"{ckpt} was made with other settings or data; resume with the same ones "
+                f"or train into another directory ({'; '.join(diff)})"
+            )
+        state.update({k: saved[k] for k in _PROGRESS})
+        if log:
+            log(f"resuming {out_dir} after epoch {state['epoch']} of {epochs}")
+    return state
+
+
+def finish_epoch(
+    out_dir: Path,
+    net: nn.Module,
+    opt: torch.optim.Optimizer,
+    state: dict[str, Any],
+    row: dict[str, float],
+    *,
+    value: float,
+    higher_is_better: bool,
+    fmt: str,
+    network_format: str,
+    panels: Sequence[Panel],
+) -> None:
+    """Records epoch ``row`` (its ``epoch`` and ``seconds`` entries included) in
+    ``state``; keeps the weights as ``OUT/best.safetensors`` when ``value`` (the
+    selection metric) is the best so far; writes the checkpoint, ``metrics.csv`` and
+    ``metrics.png``."""
+    epoch = int(row["epoch"])
+    state["history"].append(row)
+    state["seconds"] = float(state["seconds"]) + float(row["seconds"])
+    best = state["best_value"]
+    better = best is None or (value > best if higher_is_better else value < best)
+    if math.isfinite(value) and better:
+        state["best_value"], state["best_epoch"] = value, epoch
+        hparams = _hparams(net)
+        save_atomic(
+            net.state_dict(),
+            out_dir / BEST,
+            {"format": network_format, "hparams": json.dumps(hparams), "epoch": str(epoch)},
+        )
+    state["epoch"] = epoch
+    _save_checkpoint(out_dir / CHECKPOINT, net, opt, state, fmt)
+    write_csv(out_dir / "metrics.csv", state["history"])
+    plot_history(out_dir / "metrics.png", state["history"], panels)
+
+
+def load_best(out_dir: Path, net: nn.Module) -> None:
+    """Loads ``OUT/best.safetensors`` into ``net`` where there is one; eval mode."""
+    best = out_dir / BEST
+    if best.exists():
+        weights, _ = read_safetensors(best, "weights file")
+        net.load_state_dict(weights, strict=True)
+    net.eval()
+
+
+# --------------------------------------------------------------------------- metrics files
+
+
+def write_csv(path: Path, history: list[dict[str, float]]) -> None:
+    """One row per epoch (floats to 6 significant digits), written atomically."""
+    if not history:
+        return
+    fields = list(history[0])
+    tmp = path.with_name(f".{path.name}.tmp")
+    with tmp.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
+        w.writeheader()
+        for row in history:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+    os.replace(tmp, path)
+
+
+def plot_history(path: Path, history: list[dict[str, float]], panels: Sequence[Panel]) -> None:
+    """One panel per ``(title, [(column, label), ...])``, metric against epoch (PNG,
+    written atomically); nothing when ``history`` is empty."""
+    if not history:
+        return
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    epochs = [row["epoch"] for row in history]
+    fig = Figure(figsize=(4.0 * len(panels), 3.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    for i, (title, series) in enumerate(panels):
+        ax = fig.add_subplot(1, len(panels), i + 1)
+        for key, label in series:
+            ax.plot(epochs, [row.get(key, math.nan) for row in history], marker=".", label=label)
+        ax.set_title(title)
+        ax.set_xlabel("epoch")
+        ax.grid(alpha=0.3)
+        ax.legend()
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=100)
+    os.replace(tmp, path)
