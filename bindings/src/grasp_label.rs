@@ -104,7 +104,7 @@ pub struct PyGraspLabeller {
 #[pymethods]
 impl PyGraspLabeller {
     #[new]
-    #[pyo3(signature = (hand, *, table_z, friction, pregrasp_distance, hand_margin, object_margin, min_width))]
+    #[pyo3(signature = (hand, *, table_z, friction, pregrasp_distance, hand_margin, object_margin, min_width, palm_table_margin = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         hand: &Bound<'_, PyAny>,
@@ -114,12 +114,18 @@ impl PyGraspLabeller {
         hand_margin: &Bound<'_, PyAny>,
         object_margin: &Bound<'_, PyAny>,
         min_width: &Bound<'_, PyAny>,
+        palm_table_margin: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let hand = hand_arg(hand)?;
+        let hand_margin = float_arg(hand_margin, "hand_margin")?;
         let params = LabelParams {
             pregrasp_distance: float_arg(pregrasp_distance, "pregrasp_distance")?,
             friction: float_arg(friction, "friction")?,
-            hand_margin: float_arg(hand_margin, "hand_margin")?,
+            hand_margin,
+            palm_table_margin: match palm_table_margin {
+                Some(m) => float_arg(m, "palm_table_margin")?,
+                None => hand_margin,
+            },
             object_margin: float_arg(object_margin, "object_margin")?,
             min_width: float_arg(min_width, "min_width")?,
         };

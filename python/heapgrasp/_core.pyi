@@ -214,19 +214,23 @@ class GraspLabeller:
 
     The scene: rigid objects, each a set of convex pieces (every ``(V, 3)`` vertex array
     is collided as its convex hull) at an ``obj2world`` pose, on the table's half-space
-    below ``z = table_z`` (world frame, metres). The hand: ``hand``, a mapping with the
-    fields of :class:`heapgrasp.geometry.gripper.GripperGeometry` (TCP frame: z the
-    approach, fingers closing along y, pads at ``y = ±max_opening / 2``; the two
-    ``*_half`` entries are pairs).
+    below ``z = table_z`` (world frame, metres). The hand, in its TCP frame (z the
+    approach, fingers closing along y) with the fingers fully open: ``hand`` is a
+    mapping either with the fields of :class:`heapgrasp.geometry.gripper.GripperGeometry`
+    (its boxes; pads at ``y = ±max_opening / 2``; the two ``*_half`` entries are pairs),
+    or with ``palm``, ``left`` (the +y finger), ``right``: sequences of (V, 3) float64
+    vertex arrays each collided as its convex hull, and ``max_opening``.
 
-    Per grasp: (1) the open hand's boxes, swept from the pre-grasp pose
+    Per grasp: (1) the open hand's parts, swept from the pre-grasp pose
     (``pregrasp_distance`` back along z) to the grasp pose, stay farther than
-    ``hand_margin + object_margin`` from every piece and ``hand_margin`` from the table,
-    else ``collision``; (2) each finger's pad, cast inward across the whole opening,
-    meets an object (``empty`` if not), both the same one (``two-objects``), the closed
-    width (opening minus both travels: a finger that meets a free object first pushes it
-    to the other) is at least ``min_width`` (``narrow``), and both contact normals lie
-    within ``atan(friction)`` of the closing direction (``not-antipodal``).
+    ``hand_margin + object_margin`` from every piece and ``hand_margin`` from the table
+    (the palm: ``palm_table_margin``, default ``hand_margin``), else ``collision``;
+    (2) each finger, cast inward across the whole opening, meets an object (``empty``
+    if not), both the same one (``two-objects``), the closed width (opening minus both
+    travels: a finger that meets a free object first pushes it to the other) is at least
+    ``min_width`` (``narrow``), and both contact normals (from the closest points where
+    the fingers stop) lie within ``atan(friction)`` of the closing direction
+    (``not-antipodal``).
     ``reasons()`` names the codes. Raises ``InvalidValueError`` naming a bad parameter.
     """
 
@@ -240,6 +244,7 @@ class GraspLabeller:
         hand_margin: float,
         object_margin: float,
         min_width: float,
+        palm_table_margin: float | None = None,
     ) -> GraspLabeller: ...
     def add_object(self, id: int, obj2world: _F64, pieces: Sequence[_F64]) -> None:
         """Adds object ``id`` (an int in [0, 2**31 - 1], not in the scene yet) at

@@ -48,6 +48,7 @@ from heapgrasp.sim.world import SimWorld
 __all__ = [
     "CONVEX_MARGIN",
     "MIN_NORMAL_Z",
+    "PALM_TABLE_MARGIN",
     "REASONS",
     "GraspSamples",
     "best_yaw",
@@ -71,6 +72,13 @@ REASONS: tuple[str, ...] = tuple(GraspLabeller.reasons())
 #: objects' pieces), m. Measured: the hand reports a contact with an object from 2 mm
 #: apart, with the table (a box shape, whose margin lies inside it) from 1 mm.
 CONVEX_MARGIN = 0.001
+
+#: How close to the table the palm may come before PyBullet reports a contact, m.
+#: Measured on approaches: 2.6 to 3.6 mm (the moving hand lags its commanded pose by up
+#: to ~1 mm); it is the palm's 1 mm margin plus Bullet's contact-breaking threshold for
+#: a shape of the palm's size (2 % of its bounding radius plus offset: 2.7 mm). Fingers
+#: and objects show no such extra.
+PALM_TABLE_MARGIN = CONVEX_MARGIN + 0.0027
 
 #: VGN keeps surface points whose outward normal has a z component above this.
 MIN_NORMAL_Z = -0.1
@@ -147,6 +155,7 @@ def labeller(
         hand_margin=CONVEX_MARGIN,
         object_margin=CONVEX_MARGIN,
         min_width=MIN_HELD_WIDTH,
+        palm_table_margin=PALM_TABLE_MARGIN,
     )
     for oid, obj in world.objects.items():
         pieces = [_piece(str(p)) for p in obj.model.collision_meshes]

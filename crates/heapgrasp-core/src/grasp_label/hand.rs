@@ -262,6 +262,8 @@ impl Part {
 pub(crate) struct Hand {
     /// Every part (palm, left, right), swept back along −z by the pre-grasp distance.
     pub swept: Vec<Part>,
+    /// How many of `swept` are the palm's (they come first).
+    pub palm_parts: usize,
     /// The left (+y) and the right (−y) finger's parts.
     pub fingers: [Vec<Part>; 2],
     /// A box around all of `swept`.
@@ -314,6 +316,7 @@ impl Hand {
             .fold(swept[0].bound, |acc, p| acc.union(&p.bound));
         Ok(Self {
             swept,
+            palm_parts: parts.palm.len(),
             fingers,
             bound,
             max_opening: parts.max_opening,

@@ -30,6 +30,8 @@
 //! table none): the hand counts as touching an object closer than `hand_margin +
 //! object_margin` and the table closer than `hand_margin`, and a finger closing on an
 //! object stops that far from it, so widths include the margins as the simulator's do.
+//! The palm may have its own distance to the table (`palm_table_margin`): PyBullet
+//! reports the Panda palm touching the table from about 3.5 mm.
 //!
 //! Grasps are labelled in parallel over contiguous chunks; each label depends on its
 //! grasp alone, so results do not depend on the thread count.
@@ -126,6 +128,9 @@ pub struct LabelParams {
     pub friction: f64,
     /// Collision margin of the hand's shapes (m).
     pub hand_margin: f64,
+    /// Distance from the table under which the palm touches it (m); the fingers touch
+    /// it closer than `hand_margin`.
+    pub palm_table_margin: f64,
     /// Collision margin of the objects' convex pieces (m); the table has none.
     pub object_margin: f64,
     /// Smallest closed width that holds an object (m).
@@ -141,6 +146,7 @@ impl LabelParams {
         let checks = [
             ("pregrasp_distance", self.pregrasp_distance, 0.0, 1.0),
             ("hand_margin", self.hand_margin, 0.0, 0.05),
+            ("palm_table_margin", self.palm_table_margin, 0.0, 0.05),
             ("object_margin", self.object_margin, 0.0, 0.05),
             ("min_width", self.min_width, 0.0, 1.0),
         ];
@@ -327,15 +333,21 @@ impl GraspLabeller {
         }
     }
 
-    /// Whether a swept part of the hand comes within the hand's margin of the table.
+    /// Whether a swept part of the hand comes within its margin of the table.
     fn touches_table(&self, tcp2world: &Pose) -> bool {
         let r = tcp2world.rotation();
         let rz = [r[(2, 0)], r[(2, 1)], r[(2, 2)]];
         let tz = tcp2world.translation().z;
-        let limit = self.scene.table_z() + self.params.hand_margin;
+        let table = self.scene.table_z();
         // World −z in the TCP frame: the direction of each part's lowest point.
         let down = PVec::new(-rz[0] as f32, -rz[1] as f32, -rz[2] as f32);
-        self.hand.swept.iter().any(|part| {
+        self.hand.swept.iter().enumerate().any(|(k, part)| {
+            let limit = table
+                + if k < self.hand.palm_parts {
+                    self.params.palm_table_margin
+                } else {
+                    self.params.hand_margin
+                };
             if part.bound.lowest_z(&rz, tz) >= limit {
                 return false;
             }
@@ -344,6 +356,7 @@ impl GraspLabeller {
             z < limit
         })
     }
+
     /// The pieces whose bounding ball comes within `margin` of the hand's reach.
     fn near_pieces(&self, tcp2world: &Pose, margin: f64) -> Vec<Near> {
         let world2tcp = tcp2world.inverse();

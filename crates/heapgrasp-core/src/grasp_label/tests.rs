@@ -23,6 +23,7 @@ fn params() -> LabelParams {
         pregrasp_distance: 0.05,
         friction: 1.0,
         hand_margin: 0.001,
+        palm_table_margin: 0.001,
         object_margin: 0.001,
         min_width: 0.004,
     }
@@ -163,6 +164,25 @@ fn a_side_grasp_whose_palm_hits_the_table_collides() {
     let table = labeller(&[]);
     assert_eq!(table.label_one(&side(0.025)).reason, Reason::Collision);
     assert_eq!(table.label_one(&side(0.04)).reason, Reason::Empty);
+}
+
+#[test]
+fn the_palm_keeps_its_own_distance_from_the_table() {
+    // The side grasp's palm 2 mm above the table.
+    let side = pose(
+        [0.0, 0.0, 1.0],
+        [0.0, -1.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.1, 0.0, 0.032 + 0.002],
+    );
+    assert_eq!(labeller(&[]).label_one(&side).reason, Reason::Empty);
+    let mut p = params();
+    p.palm_table_margin = 0.0035;
+    let l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), p).unwrap();
+    assert_eq!(l.label_one(&side).reason, Reason::Collision);
+    // The fingers keep the hand's margin: a top-down grasp 2 mm above the table is free.
+    let low = top_down([0.0, 0.0, 0.0072 + 0.002]);
+    assert_eq!(l.label_one(&low).reason, Reason::Empty);
 }
 
 #[test]
