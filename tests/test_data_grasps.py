@@ -168,6 +168,16 @@ def test_a_shard_run_again_has_the_same_bytes_and_resume_skips(
     assert manifest["complete"] and read_manifest(out)["config"]["scenes"] == 2
     with pytest.raises(ValueError, match="max_objects: 2 there, 3 asked"):
         generate(GraspDataConfig(**{**CONFIG.identity(), "scenes": 2, "max_objects": 3}), out)
+    # nor do shards made with other loop settings, or by another labeller
+    path = out / "manifest.json"
+    text = path.read_text()
+    manifest = json.loads(text)
+    manifest["config"]["roof_radius"] = 0.0
+    manifest["config"]["labeller"] = "0123"
+    path.write_text(json.dumps(manifest))
+    with pytest.raises(ValueError, match=r"roof_radius: 0.0 there, 0.0225 asked.*labeller: '0123'"):
+        generate(CONFIG, out)
+    path.write_text(text)
 
 
 def test_bad_settings_are_named() -> None:

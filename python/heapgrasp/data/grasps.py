@@ -43,6 +43,7 @@ circle), and the counts ``scenes`` and ``dropped``.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Literal
@@ -101,7 +102,20 @@ def _settings() -> dict[str, Any]:
         "circle": CIRCLE,
         "tsdf_truncation": DepthPerception.truncation,
         "max_opening": PANDA_HAND.max_opening,
+        "labeller": _labeller_digest(),
     }
+
+
+def _labeller_digest() -> str:
+    """What labels the grasps: a digest of :mod:`heapgrasp.sim.grasp_labels` and the
+    compiled core (shards of another labeller do not join a dataset)."""
+    from heapgrasp import _core
+    from heapgrasp.sim import grasp_labels
+
+    digest = hashlib.sha256()
+    for path in (grasp_labels.__file__, _core.__file__):
+        digest.update(Path(str(path)).read_bytes())
+    return digest.hexdigest()[:16]
 
 
 SPEC = DatasetSpec(FORMAT, VERSION, "grasp dataset", _settings, {"grasps": "grasp_label"})

@@ -247,17 +247,23 @@ def _write_manifest(
     return manifest
 
 
-def _check_compatible(out: Path, spec: DatasetSpec, config: ShardedConfig) -> None:
+def _check_compatible(
+    out: Path, spec: DatasetSpec, config: ShardedConfig, objects: list[str]
+) -> None:
+    """ValueError unless shards made now would belong with those in ``out``: the same
+    config (but the number of scenes), loop settings and objects."""
     if not (out / "manifest.json").exists():
         if any(out.glob("shard-*.npz")):
             raise ValueError(f"{out}: shard files without a manifest.json; use an empty directory")
         return
-    old = read_manifest(out, spec)["config"]
-    mine = config.identity()
-    diff = sorted(k for k in mine if old.get(k) != mine[k])
+    manifest = read_manifest(out, spec)
+    old = manifest["config"]
+    mine = {**config.identity(), **spec.settings()}
+    diff = [f"{k}: {old.get(k)!r} there, {mine[k]!r} asked" for k in mine if old.get(k) != mine[k]]
+    if manifest.get("objects") != objects:
+        diff.append(f"objects: {len(manifest.get('objects') or [])} there, {len(objects)} asked")
     if diff:
-        what = ", ".join(f"{k}: {old.get(k)!r} there, {mine[k]!r} asked" for k in diff)
-        raise ValueError(f"{out} holds a dataset made with other settings ({what})")
+        raise ValueError(f"{out} holds a dataset made with other settings ({', '.join(diff)})")
 
 
 # --------------------------------------------------------------------------- running
@@ -289,8 +295,8 @@ def generate(
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     out.mkdir(parents=True, exist_ok=True)
-    _check_compatible(out, spec, config)
     objects = dataset_objects(config.split)
+    _check_compatible(out, spec, config, objects)
     todo = [s for s in range(config.shards) if not shard_path(out, s).exists()]
     _write_manifest(out, spec, config, objects, started)
     bar = tqdm(
