@@ -21,9 +21,8 @@ from heapgrasp.loop.config import RunConfig
 from heapgrasp.planning.volumes import GraspVolumes
 from heapgrasp.sim.build import object_library, sim_pipeline
 
-# root seed 0: scene 0 is captured along no-vp's circle (k = -1, one object), scene 1
-# along k = 2 random view waypoints (two objects)
 CONFIG = GraspDataConfig(scenes=2, root_seed=0, shard_size=1, max_objects=2)
+TSDF = GraspDataConfig(scenes=1, root_seed=0, shard_size=1, max_objects=2, input="tsdf")
 R = 40
 
 
@@ -39,14 +38,25 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[dict[s
     assert manifest["complete"] and manifest["samples"] == 2 and manifest["dropped"] == 0
     shards = [_load(shard_path(out, s)) for s in range(2)]
     assert manifest["grasps"] == sum(len(d["grasp_label"]) for d in shards) > 0
+    library = object_library(RunConfig())
+    ks = {draw_scene(CONFIG, i, library)[0].k for i in range(2)}
+    assert -1 in ks and len(ks) == 2  # seed 0: no-vp's circle and Algorithm 1's waypoints
     return out, shards
 
 
-def test_shards_hold_the_contract(dataset: tuple[Path, list[dict[str, Any]]]) -> None:
+@pytest.fixture(scope="module")
+def tsdf_dataset(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    out = tmp_path_factory.mktemp("grasps-tsdf")
+    manifest = generate(TSDF, out, progress=False)
+    assert manifest["complete"] and manifest["samples"] == 1
+    return _load(shard_path(out, 0))
+
+
+def test_shards_hold_the_contract(
+    dataset: tuple[Path, list[dict[str, Any]]], tsdf_dataset: dict[str, Any]
+) -> None:
     _, shards = dataset
     per_scene = {
-        "occupancy": (np.float32, (R, R, R)),
-        "tsdf": (np.float32, (R, R, R)),
         "origin": (np.float64, (3,)),
         "voxel_size": (np.float64, ()),
         "scene_seed": (np.int64, ()),
@@ -61,10 +71,13 @@ def test_shards_hold_the_contract(dataset: tuple[Path, list[dict[str, Any]]]) ->
         "grasp_width": (np.float32, ()),
         "grasp_label": (np.uint8, ()),
     }
-    for d, k in zip(shards, (-1, 2), strict=True):
-        assert set(d) == {*per_scene, *per_grasp, "scenes", "dropped"}
+    library = object_library(RunConfig())
+    samples = [(d, "occupancy", draw_scene(CONFIG, i, library)[0].k) for i, d in enumerate(shards)]
+    for d, grid, k in [*samples, (tsdf_dataset, "tsdf", -1)]:
+        assert set(d) == {grid, *per_scene, *per_grasp, "scenes", "dropped"}
         assert d["scenes"].dtype == d["dropped"].dtype == np.int64 and d["scenes"].shape == ()
         s, g = len(d["k"]), len(d["grasp_label"])
+        assert d[grid].dtype == np.float32 and d[grid].shape == (s, R, R, R)
         for key, (dtype, shape) in per_scene.items():
             assert d[key].dtype == dtype and d[key].shape == (s, *shape), key
         for key, (dtype, shape) in per_grasp.items():
@@ -72,12 +85,13 @@ def test_shards_hold_the_contract(dataset: tuple[Path, list[dict[str, Any]]]) ->
         assert d["k"].tolist() == [k]
         assert (d["grasp_scene"] == 0).all()
         np.testing.assert_allclose(np.linalg.norm(d["grasp_quat"], axis=1), 1.0, atol=1e-5)
-        # Ŝ≥λ: the occupancy where it reaches λ = 0.9, else 0
+    for d, _, _ in samples:  # Ŝ≥λ: the occupancy where it reaches λ = 0.9, else 0
         occupied = d["occupancy"][d["occupancy"] > 0]
         assert occupied.size and ((occupied >= 0.9) & (occupied <= 1)).all()
-        # the TSDF, truncated and normalised (scene 1's transparent objects may leave
-        # no surface in it: the depth camera sees through them)
-        assert (np.abs(d["tsdf"]) <= 1.0).all() and (d["tsdf"] > 0).any()
+    # the TSDF, truncated and normalised (transparent objects may leave no surface in it:
+    # the depth camera sees through them)
+    tsdf = tsdf_dataset["tsdf"]
+    assert (np.abs(tsdf) <= 1.0).all() and (tsdf > 0).any()
 
 
 def test_labels_are_balanced_and_voxels_hold_their_grasps(
@@ -120,23 +134,25 @@ class _Spy:
 
 
 def test_inputs_are_what_the_loop_feeds_the_network(
-    dataset: tuple[Path, list[dict[str, Any]]],
+    dataset: tuple[Path, list[dict[str, Any]]], tsdf_dataset: dict[str, Any]
 ) -> None:
     _, shards = dataset
     library = object_library(RunConfig())
+    # the VGN baseline's phase in a fresh world of the scene: its TSDF
+    scene, _ = draw_scene(TSDF, 0, library)
+    net = {"grasp_planner": "network", "start": scene.start, "split": "train"}
+    spy = _Spy("tsdf")
+    with scene.world(library, TSDF) as world:
+        run = RunConfig(method="vgn", **net)
+        sim_pipeline(run, world, seed=scene.world_seed, grasp_planner=spy).plan()
+    (tsdf,) = spy.grids
+    assert tsdf.dtype == np.float32
+    np.testing.assert_array_equal(tsdf_dataset["tsdf"][0], tsdf)
     for index, d in enumerate(shards):
         scene, rng = draw_scene(CONFIG, index, library)
         assert int(d["scene_seed"][0]) == scene.world_seed
         seed = scene.world_seed
         net = {"grasp_planner": "network", "start": scene.start, "split": "train"}
-        # the VGN baseline's phase in a fresh world of the scene: its TSDF
-        spy = _Spy("tsdf")
-        with scene.world(library, CONFIG) as world:
-            vgn = sim_pipeline(RunConfig(method="vgn", **net), world, seed=seed, grasp_planner=spy)
-            vgn.plan()
-        (tsdf,) = spy.grids
-        assert tsdf.dtype == np.float32
-        np.testing.assert_array_equal(d["tsdf"][0], tsdf)
         # the silhouette method's grid where it plans grasps
         spy = _Spy("occupancy")
         with scene.world(library, CONFIG) as world:
@@ -185,6 +201,8 @@ def test_bad_settings_are_named() -> None:
         GraspDataConfig(split="holdout")
     with pytest.raises(ValueError, match="points must be an integer >= 1, got 0"):
         GraspDataConfig(points=0)
+    with pytest.raises(ValueError, match=r"input must be one of .*got 'depth'"):
+        GraspDataConfig(input="depth")
 
 
 def test_cli(

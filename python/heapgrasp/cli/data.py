@@ -80,7 +80,7 @@ def _views(args: argparse.Namespace) -> int:
 
 
 def _grasps(args: argparse.Namespace) -> int:
-    return _generate(args, "grasps")
+    return _generate(args, "grasps", input=args.input)
 
 
 def _dataset_parser(
@@ -168,5 +168,13 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "grasp-network data: VGN's grasps on the loop's grids, exact-geometry labels",
         scenes=1000,
         shard_size=25,
+    )
+    p.add_argument(
+        "--input",
+        choices=("occupancy", "tsdf"),
+        default="occupancy",
+        help="the network input the samples hold: occupancy = the silhouette grid Ŝ≥λ "
+        "(HEAPGrasp, no-vp; ~0.4 s a scene), tsdf = the VGN baseline's TSDF from sensor "
+        "depth (~8 s a scene)",
     )
     p.set_defaults(func=_grasps)

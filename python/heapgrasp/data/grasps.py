@@ -7,38 +7,42 @@ shard re-run is identical):
    (:func:`~heapgrasp.data.scenes.object_split`), ``pile`` or ``packed`` (each with
    probability 1/2), in a random scene group (transparent, opaque, specular or mixed),
    as VGN's scenes and the view data's;
-2. the camera starts at ``p⁰`` (``side`` or ``above``, each with probability 1/2) and
-   captures, as the loop's phase does (timed paths, 30 fps, ideal silhouettes), either
-   (half the scenes) Algorithm 1's ``k ~ U{0..L−1}`` random view waypoints
+2. a dataset holds one network input, ``input`` (each network learns its own):
+   ``occupancy`` (HEAPGrasp and no-vp): the camera starts at ``p⁰`` (``side`` or
+   ``above``, each with probability 1/2) and captures, as the loop's phase does (timed
+   paths, 30 fps, ideal silhouettes), either (half the scenes) Algorithm 1's
+   ``k ~ U{1..L}`` random view waypoints (the loop plans grasps after waypoints 1 to L)
    (:func:`~heapgrasp.data.scenes.capture_random_views`, as the view data) or (the
    other half, ``k = −1``) no-vp's circle (:meth:`~heapgrasp.loop.phase.Pipeline.plan`
    of ``method = "no-vp"``). ``occupancy`` is what the loop's
    :meth:`~heapgrasp.loop.phase.Pipeline.grasp_candidates` then feeds the grasp
    network: :meth:`~heapgrasp.perception.silhouette.SilhouettePerception.grasp_input`,
    ``Ŝ≥λ`` with the loop's settings (roof trimming included where ``roof_radius`` > 0);
-3. on the same scene the VGN baseline's phase (``method = "vgn"``: the circle, the
-   640×480 depth camera with the per-category sensor model) gives ``tsdf``, what the loop
-   feeds the network of ``input_kind = "tsdf"``;
-4. the labels (:mod:`heapgrasp.sim.grasp_labels`): VGN's ``points`` surface points ×
+   ``tsdf`` (the VGN baseline): its phase (``method = "vgn"``: the circle, the 640×480
+   depth camera with the per-category sensor model) gives the TSDF the loop feeds the
+   network of ``input_kind = "tsdf"``. The two are separate datasets because the depth
+   frames cost ~20 times the silhouettes (``docs/benchmarks.md``);
+3. the labels (:mod:`heapgrasp.sim.grasp_labels`): VGN's sampler, ``points`` surface points ×
    ``yaws`` yaws, labelled on the exact geometry, reduced to one grasp per point as VGN
    does; a grasp whose TCP lies outside the grid is dropped; then balanced: every
    positive and as many negatives drawn at random (all of them where there are fewer).
 
-Both grids are ``(R, R, R)`` float32 indexed ``[i, j, k]`` along the world's x, y, z
+The grid is ``(R, R, R)`` float32 indexed ``[i, j, k]`` along the world's x, y, z
 from ``origin`` (the grid frame of the loop; voxel ``[i, j, k]`` spans ``origin +
 [i, j, k] · voxel_size`` to ``origin + [i+1, j+1, k+1] · voxel_size``). A scene with no
 object left on the table, or no positive grasp in the grid, is dropped and counted.
 
 Layout on disk (``OUT``): as the view data (:mod:`heapgrasp.data.shards`). Each shard
-holds, with leading sample axis ``S`` and grasp axis ``G``: ``occupancy``, ``tsdf``
-(``(S, R, R, R)`` float32), ``origin`` (``(S, 3)`` float64), ``voxel_size`` (``(S,)``
-float64), ``grasp_scene`` (``(G,)`` int64, the sample of each grasp), ``grasp_voxel``
-(``(G, 3)`` int64, the voxel of its TCP), ``grasp_position`` (``(G, 3)`` float32, TCP in
-world metres), ``grasp_quat`` (``(G, 4)`` float32, TCP orientation ``x, y, z, w`` in the
-world's (= the grid's) axes), ``grasp_width`` (``(G,)`` float32, opening in metres; the
-gripper's widest for a negative), ``grasp_label`` (``(G,)`` uint8, 1 success, 0
-failure), ``scene_seed``, ``scene_index``, ``k`` (``(S,)`` int64; ``k = −1``: the
-circle), and the counts ``scenes`` and ``dropped``.
+holds, with leading sample axis ``S`` and grasp axis ``G``: ``occupancy`` or ``tsdf``
+(the dataset's input, ``(S, R, R, R)`` float32), ``origin`` (``(S, 3)`` float64),
+``voxel_size`` (``(S,)`` float64), ``grasp_scene`` (``(G,)`` int64, the sample of each
+grasp), ``grasp_voxel`` (``(G, 3)`` int64, the voxel of its TCP), ``grasp_position``
+(``(G, 3)`` float32, TCP in world metres), ``grasp_quat`` (``(G, 4)`` float32, TCP
+orientation ``x, y, z, w`` in the world's (= the grid's) axes), ``grasp_width``
+(``(G,)`` float32, opening in metres; the gripper's widest for a negative),
+``grasp_label`` (``(G,)`` uint8, 1 success, 0 failure), ``scene_seed``, ``scene_index``,
+``k`` (``(S,)`` int64; ``k = −1``: the circle, always for ``tsdf``), and the counts
+``scenes`` and ``dropped``.
 """
 
 from __future__ import annotations
@@ -72,6 +76,8 @@ F32 = npt.NDArray[np.float32]
 
 FORMAT = "heapgrasp-grasp-data"
 VERSION = 1
+INPUTS = ("occupancy", "tsdf")
+"""The network inputs a dataset can hold (:attr:`GraspDataConfig.input`)."""
 CIRCLE = 0.5
 """Share of the scenes whose ``occupancy`` is captured along no-vp's circle (the others:
 Algorithm 1's random view waypoints)."""
@@ -131,10 +137,15 @@ class GraspDataConfig(ShardedConfig):
     max_objects: int = 5
     """The most objects in a scene (N_ob, Table I): VGN's Poisson(4) + 1 capped here."""
     L: int = 3
-    """View waypoints (Table I): ``k ~ U{0..L−1}`` (Algorithm 1), and no-vp's and VGN's
+    """View waypoints (Table I): ``k ~ U{1..L}`` (Algorithm 1), and no-vp's and VGN's
     circle of ``L`` waypoints."""
-    points: int = 120
-    """Surface points per scene (VGN)."""
+    input: str = "occupancy"
+    """The network input the samples hold: ``occupancy`` (``Ŝ≥λ``, HEAPGrasp and no-vp)
+    or ``tsdf`` (the VGN baseline)."""
+    points: int = 600
+    """Surface points per scene. VGN samples 120 and executes each in physics; our labels
+    cost ~0.1 ms a point (``docs/benchmarks.md``), so a scene gives 5 times VGN's
+    grasps for the same capture."""
     yaws: int = 6
     """Yaws per point, in [0, π) (VGN)."""
 
@@ -143,6 +154,8 @@ class GraspDataConfig(ShardedConfig):
     def __post_init__(self) -> None:
         super().__post_init__()
         self.positive("max_objects", "L", "points", "yaws")
+        if self.input not in INPUTS:
+            raise ValueError(f"input must be one of {INPUTS}, got {self.input!r}")
 
     def run_shard(self, shard: int) -> dict[str, Any]:
         """Arrays of ``shard`` (:func:`shard_samples`)."""
@@ -227,7 +240,7 @@ def draw_scene(
     rng = np.random.default_rng(np.random.SeedSequence([config.root_seed, index]))
     world_seed = int(rng.integers(2**31))
     start = "side" if rng.random() < 0.5 else "above"
-    k = -1 if rng.random() < CIRCLE else int(rng.integers(0, config.L))
+    k = -1 if rng.random() < CIRCLE else int(rng.integers(1, config.L + 1))
     pool = split_models(library, config.split)
     n_ob = min(int(rng.poisson(MEAN_EXTRA_OBJECTS)) + 1, config.max_objects, len(pool))
     models = tuple(pool[i] for i in rng.choice(len(pool), size=n_ob, replace=False))
@@ -239,30 +252,27 @@ def draw_scene(
 def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> dict[str, Any] | None:
     """Runs scene ``index``; its sample, or None when dropped."""
     from heapgrasp.sim.build import object_library, sim_pipeline
-    from heapgrasp.sim.robot import SimRobot
 
     if library is None:
         library = object_library(run_config(config.split, "side", config.L))
     scene, rng = draw_scene(config, index, library)
-    occupancy, tsdf = _Recorder("occupancy"), _Recorder("tsdf")
+    recorder = _Recorder(config.input)
     with scene.world(library, config) as world:
         if not world.objects:
             return None
         seed = scene.world_seed
-        silhouettes = scene.run_config(config, scene.silhouette_method)
-        pipeline = sim_pipeline(silhouettes, world, seed=seed, grasp_planner=occupancy)
-        if scene.k < 0:
-            pipeline.plan()
+        if config.input == "occupancy":
+            silhouettes = scene.run_config(config, scene.silhouette_method)
+            pipeline = sim_pipeline(silhouettes, world, seed=seed, grasp_planner=recorder)
+            if scene.k < 0:
+                pipeline.plan()
+            else:
+                capture_random_views(pipeline, rng, scene.k)
+                pipeline.grasp_candidates()
         else:
-            capture_random_views(pipeline, rng, scene.k)
-            pipeline.grasp_candidates()
-        # The silhouettes draw nothing from the world's generator: the sensor noise of
-        # the depth frames is the VGN baseline's in a phase of this scene.
-        depth = scene.run_config(config, "vgn")
-        robot = pipeline.robot
-        assert isinstance(robot, SimRobot)
-        vgn = sim_pipeline(depth, world, seed=seed, grasp_planner=tsdf, body=robot.body)
-        vgn.plan()
+            depth = scene.run_config(config, "vgn")
+            pipeline = sim_pipeline(depth, world, seed=seed, grasp_planner=recorder)
+            pipeline.plan()
         frame = pipeline.frame
         max_opening = pipeline.robot.gripper.geometry.max_opening
         grasps = _label(world, rng, config)
@@ -277,8 +287,7 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
     n_neg = min(len(negatives), len(positives))
     keep = np.sort(np.concatenate([positives, rng.choice(negatives, n_neg, replace=False)]))
     return {
-        "occupancy": occupancy.grid,
-        "tsdf": tsdf.grid,
+        config.input: recorder.grid,
         "origin": np.asarray(frame.origin, dtype=np.float64),
         "voxel_size": np.float64(frame.voxel_size),
         "grasp_voxel": idx[keep],
@@ -288,7 +297,7 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
         "grasp_label": label[keep].astype(np.uint8),
         "scene_seed": np.int64(scene.world_seed),
         "scene_index": np.int64(index),
-        "k": np.int64(scene.k),
+        "k": np.int64(scene.k if config.input == "occupancy" else -1),
     }
 
 
@@ -304,8 +313,6 @@ def _label(world: Any, rng: np.random.Generator, config: GraspDataConfig) -> dic
 # --------------------------------------------------------------------------- shards
 
 _PER_SCENE = {
-    "occupancy": np.float32,
-    "tsdf": np.float32,
     "origin": np.float64,
     "voxel_size": np.float64,
     "scene_seed": np.int64,
@@ -327,9 +334,9 @@ def shard_samples(config: GraspDataConfig, shard: int) -> dict[str, Any]:
 
     samples, scenes = run_scenes(config, shard, scene_sample)
     r = RunConfig().resolution
-    shapes = {"occupancy": (r, r, r), "tsdf": (r, r, r), "origin": (3,)}
+    shapes = {config.input: (r, r, r), "origin": (3,)}
     data: dict[str, Any] = {}
-    for key, dtype in _PER_SCENE.items():
+    for key, dtype in {config.input: np.float32, **_PER_SCENE}.items():
         empty = np.zeros((0, *shapes.get(key, ())), dtype)
         data[key] = np.stack([s[key] for s in samples]).astype(dtype) if samples else empty
     counts = [len(s["grasp_label"]) for s in samples]
