@@ -87,6 +87,7 @@ def export_onnx(
     path: str | os.PathLike[str],
     *,
     provenance: Mapping[str, Any],
+    hparams: Mapping[str, Any] | None = None,
     opset: int = OPSET,
 ) -> Path:
     """Writes ``net`` (a :class:`ViewNet` or :class:`GraspNet`) to ``path`` as a
@@ -104,6 +105,10 @@ def export_onnx(
         as the model card reports them, and anything else. ``command`` (default: this
         process's command line), ``created`` (default: now, UTC) and ``machine``
         (default: :func:`describe_machine`) are filled in where missing.
+    hparams : mapping, optional
+        Entries added to the file's hyper-parameters (plain JSON), e.g. the grasp
+        network's ``input_kind`` (``occupancy`` or ``tsdf``); the architecture's own
+        entries cannot be replaced.
     opset : int
         ONNX opset (≥ 17).
 
@@ -132,7 +137,11 @@ def export_onnx(
         ) from exc
     kind: Kind = "view-network" if isinstance(net, ViewNet) else "grasp-network"
     in_channels = int(getattr(net, "in_channels", net.encoder.in_channels))
-    hparams = {**net.hparams(), "in_channels": in_channels}
+    arch = {**net.hparams(), "in_channels": in_channels}
+    clash = sorted(set(arch) & set(hparams or {}))
+    if clash:
+        raise ValueError(f"hparams may not replace the architecture's {', '.join(clash)}")
+    all_hparams = {**arch, **dict(hparams or {})}
     prov = {
         "command": shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]) if sys.argv else "",
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
@@ -144,7 +153,7 @@ def export_onnx(
     meta = {
         META_KIND: kind,
         META_VERSION: str(FORMAT_VERSION),
-        META_HPARAMS: _json(hparams, "hparams"),
+        META_HPARAMS: _json(all_hparams, "hparams"),
         META_PROVENANCE: _json(prov, "provenance"),
     }
     r = net.resolution
