@@ -12,6 +12,7 @@ parsed :class:`argparse.Namespace` and returning the exit status::
     heapgrasp data views                     the view network's dataset (Algorithm 1)
     heapgrasp data grasps                    the grasp network's dataset (VGN's scheme)
     heapgrasp train views DATA_DIR ...       the view network trained on that dataset
+    heapgrasp train grasps DATA ...          the grasp network trained on grasp datasets
 """
 
 from __future__ import annotations
