@@ -68,11 +68,20 @@ fn hand_arg(hand: &Bound<'_, PyAny>) -> PyResult<HandParts> {
     })?;
     if d.contains("palm")? {
         let parts = |k: &str| vertex_arrays(&hand_item(d, k)?, &format!("hand[{k:?}]"));
+        let optional = |k: &str| -> PyResult<f64> {
+            if d.contains(k)? {
+                float_arg(&hand_item(d, k)?, &format!("hand[{k:?}]"))
+            } else {
+                Ok(0.0)
+            }
+        };
         return Ok(HandParts {
             palm: parts("palm")?,
             left: parts("left")?,
             right: parts("right")?,
             max_opening: float_arg(&hand_item(d, "max_opening")?, "hand[\"max_opening\"]")?,
+            palm_threshold: optional("palm_threshold")?,
+            finger_threshold: optional("finger_threshold")?,
         });
     }
     let f = |k: &str| float_arg(&hand_item(d, k)?, &format!("hand[{k:?}]"));
@@ -104,7 +113,7 @@ pub struct PyGraspLabeller {
 #[pymethods]
 impl PyGraspLabeller {
     #[new]
-    #[pyo3(signature = (hand, *, table_z, friction, pregrasp_distance, hand_margin, object_margin, min_width, palm_table_margin = None))]
+    #[pyo3(signature = (hand, *, table_z, friction, pregrasp_distance, hand_margin, object_margin, min_width, approach_lag = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         hand: &Bound<'_, PyAny>,
@@ -114,18 +123,17 @@ impl PyGraspLabeller {
         hand_margin: &Bound<'_, PyAny>,
         object_margin: &Bound<'_, PyAny>,
         min_width: &Bound<'_, PyAny>,
-        palm_table_margin: Option<&Bound<'_, PyAny>>,
+        approach_lag: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let zero_or =
+            |v: Option<&Bound<'_, PyAny>>, name: &str| v.map_or(Ok(0.0), |v| float_arg(v, name));
         let hand = hand_arg(hand)?;
         let hand_margin = float_arg(hand_margin, "hand_margin")?;
         let params = LabelParams {
             pregrasp_distance: float_arg(pregrasp_distance, "pregrasp_distance")?,
             friction: float_arg(friction, "friction")?,
             hand_margin,
-            palm_table_margin: match palm_table_margin {
-                Some(m) => float_arg(m, "palm_table_margin")?,
-                None => hand_margin,
-            },
+            approach_lag: zero_or(approach_lag, "approach_lag")?,
             object_margin: float_arg(object_margin, "object_margin")?,
             min_width: float_arg(min_width, "min_width")?,
         };
@@ -136,13 +144,16 @@ impl PyGraspLabeller {
     }
 
     /// Adds object `id` at `obj2world` made of `pieces`, each a `(V, 3)` float64 array
-    /// of object-frame vertices collided as its convex hull.
+    /// of object-frame vertices collided as its convex hull, with a contact `threshold`.
+    #[pyo3(signature = (id, obj2world, pieces, threshold = None))]
     fn add_object(
         &mut self,
         id: &Bound<'_, PyAny>,
         obj2world: &Bound<'_, PyAny>,
         pieces: &Bound<'_, PyAny>,
+        threshold: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
+        let threshold = threshold.map_or(Ok(0.0), |t| float_arg(t, "threshold"))?;
         let id = int_arg(
             id,
             "id",
@@ -155,7 +166,7 @@ impl PyGraspLabeller {
         let slices: Vec<&[f64]> = arrays.iter().map(Vec::as_slice).collect();
         // `id` was range-checked by `int_arg`.
         let id = i32::try_from(id).unwrap_or(i32::MAX);
-        self.inner.add_object(id, pose, &slices).py()
+        self.inner.add_object(id, pose, &slices, threshold).py()
     }
 
     /// Labels grasps `tcp2world` (N, 4, 4) float64 on `threads` threads (0: all).

@@ -219,18 +219,19 @@ class GraspLabeller:
     mapping either with the fields of :class:`heapgrasp.geometry.gripper.GripperGeometry`
     (its boxes; pads at ``y = ±max_opening / 2``; the two ``*_half`` entries are pairs),
     or with ``palm``, ``left`` (the +y finger), ``right``: sequences of (V, 3) float64
-    vertex arrays each collided as its convex hull, and ``max_opening``.
+    vertex arrays each collided as its convex hull, ``max_opening``, and optionally the
+    contact thresholds ``palm_threshold`` and ``finger_threshold`` (m, default 0).
 
     Per grasp: (1) the open hand's parts, swept from the pre-grasp pose
-    (``pregrasp_distance`` back along z) to the grasp pose, stay farther than
-    ``hand_margin + object_margin`` from every piece and ``hand_margin`` from the table
-    (the palm: ``palm_table_margin``, default ``hand_margin``), else ``collision``;
-    (2) each finger, cast inward across the whole opening, meets an object (``empty``
-    if not), both the same one (``two-objects``), the closed width (opening minus both
-    travels: a finger that meets a free object first pushes it to the other) is at least
-    ``min_width`` (``narrow``), and both contact normals (from the closest points where
-    the fingers stop) lie within ``atan(friction)`` of the closing direction
-    (``not-antipodal``).
+    (``pregrasp_distance`` back along z) to ``approach_lag`` short of the grasp pose,
+    stay farther than ``hand_margin + object_margin`` plus the smaller contact threshold
+    of the pair from every piece, and ``hand_margin`` plus the part's threshold from the
+    table, else ``collision``; (2) each finger, cast inward across the whole opening,
+    meets an object (``empty`` if not), both the same one (``two-objects``), the closed
+    width (opening minus both travels: a finger that meets a free object first pushes it
+    to the other) is at least ``min_width`` (``narrow``), both contact normals (from the
+    closest points where the fingers stop) lie within ``atan(friction)`` of the closing
+    direction (``not-antipodal``).
     ``reasons()`` names the codes. Raises ``InvalidValueError`` naming a bad parameter.
     """
 
@@ -244,13 +245,15 @@ class GraspLabeller:
         hand_margin: float,
         object_margin: float,
         min_width: float,
-        palm_table_margin: float | None = None,
+        approach_lag: float | None = None,
     ) -> GraspLabeller: ...
-    def add_object(self, id: int, obj2world: _F64, pieces: Sequence[_F64]) -> None:
+    def add_object(
+        self, id: int, obj2world: _F64, pieces: Sequence[_F64], threshold: float | None = None
+    ) -> None:
         """Adds object ``id`` (an int in [0, 2**31 - 1], not in the scene yet) at
         ``obj2world`` (4, 4) float64, made of ``pieces``: (V, 3) float64 vertex arrays in
         the object frame (m), V >= 4 spanning a volume (else ``MeshError``), at most 4096
-        pieces."""
+        pieces; ``threshold`` its contact threshold (m, default 0)."""
     def label(
         self, tcp2world: _F64, *, threads: int | None = None
     ) -> tuple[npt.NDArray[np.bool_], _F32, npt.NDArray[np.int32], npt.NDArray[np.uint8]]:

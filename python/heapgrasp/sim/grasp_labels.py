@@ -46,12 +46,14 @@ from heapgrasp.sim.objects import load_mesh
 from heapgrasp.sim.world import SimWorld
 
 __all__ = [
+    "APPROACH_LAG",
+    "BREAKING_FACTOR",
     "CONVEX_MARGIN",
     "MIN_NORMAL_Z",
-    "PALM_TABLE_MARGIN",
     "REASONS",
     "GraspSamples",
     "best_yaw",
+    "bullet_size",
     "label_scene",
     "labeller",
     "panda_hand_parts",
@@ -73,12 +75,17 @@ REASONS: tuple[str, ...] = tuple(GraspLabeller.reasons())
 #: apart, with the table (a box shape, whose margin lies inside it) from 1 mm.
 CONVEX_MARGIN = 0.001
 
-#: How close to the table the palm may come before PyBullet reports a contact, m.
-#: Measured on approaches: 2.6 to 3.6 mm (the moving hand lags its commanded pose by up
-#: to ~1 mm); it is the palm's 1 mm margin plus Bullet's contact-breaking threshold for
-#: a shape of the palm's size (2 % of its bounding radius plus offset: 2.7 mm). Fingers
-#: and objects show no such extra.
-PALM_TABLE_MARGIN = CONVEX_MARGIN + 0.0027
+#: Bullet's contact-breaking threshold as a fraction of a shape's size (its
+#: ``gContactBreakingThreshold``): two shapes report a contact up to this fraction of the
+#: smaller one's :func:`bullet_size` beyond their margins. Measured: the palm reports the
+#: table from 2.6 to 3.6 mm (1 mm margin + 2.7 mm, less the lag), the fingers' pads a box
+#: face they slide along from 2.8 to 2.9 mm (2 mm of margins + 0.9 to 1.2 mm).
+BREAKING_FACTOR = 0.02
+
+#: How far the free-flying hand trails its commanded pose on the approach (m): it moves
+#: at 0.1 m/s on a constraint, is checked for contacts only on the way, and catches up
+#: unchecked (measured: 1.2 to 1.9 mm).
+APPROACH_LAG = 0.0015
 
 #: VGN keeps surface points whose outward normal has a z component above this.
 MIN_NORMAL_Z = -0.1
@@ -113,6 +120,15 @@ def _surface(path: str) -> tuple[F64, npt.NDArray[np.int64]]:
     return v, f
 
 
+def bullet_size(pieces: list[F64] | tuple[F64, ...]) -> float:
+    """Bullet's size of a collision shape (its "angular motion disc"): the radius of the
+    ball around the bounding box of ``pieces`` ((V, 3) vertices in the body's frame, m)
+    plus the box centre's distance from the frame's origin."""
+    v = np.concatenate([np.asarray(p, dtype=np.float64).reshape(-1, 3) for p in pieces])
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    return float(np.linalg.norm(hi - lo) / 2 + np.linalg.norm((hi + lo) / 2))
+
+
 def panda_hand_parts(opening: float = MAX_OPENING) -> dict[str, Any]:
     """The Panda hand as PyBullet collides it, for :class:`heapgrasp.GraspLabeller`:
     the vertices of ``hand.obj`` and of the two ``finger.obj`` of
@@ -121,7 +137,9 @@ def panda_hand_parts(opening: float = MAX_OPENING) -> dict[str, Any]:
     with the finger pads ``opening`` apart.
 
     Returns ``{"palm": [(V, 3)], "left": [(V, 3)], "right": [(V, 3)], "max_opening":
-    opening}`` (float64 arrays, metres; ``left`` on the +y side).
+    opening, "palm_threshold": ..., "finger_threshold": ...}`` (float64 arrays, metres;
+    ``left`` on the +y side; the thresholds Bullet's contact-breaking distances of the
+    hand's and a finger's link, :data:`BREAKING_FACTOR` times their :func:`bullet_size`).
     """
     collision = PANDA_MESHES / "collision"
     palm = _piece(str(collision / "hand.obj")) - np.array([0.0, 0.0, TCP_OFFSET])
@@ -130,7 +148,14 @@ def panda_hand_parts(opening: float = MAX_OPENING) -> dict[str, Any]:
     # The right finger's collision origin turns it by π about z (the URDF's rpy).
     left = finger + np.array([0.0, 0.5 * opening, z])
     right = finger * np.array([-1.0, -1.0, 1.0]) + np.array([0.0, -0.5 * opening, z])
-    return {"palm": [palm], "left": [left], "right": [right], "max_opening": opening}
+    return {
+        "palm": [palm],
+        "left": [left],
+        "right": [right],
+        "max_opening": opening,
+        "palm_threshold": BREAKING_FACTOR * bullet_size([_piece(str(collision / "hand.obj"))]),
+        "finger_threshold": BREAKING_FACTOR * bullet_size([finger]),
+    }
 
 
 def labeller(
@@ -155,11 +180,12 @@ def labeller(
         hand_margin=CONVEX_MARGIN,
         object_margin=CONVEX_MARGIN,
         min_width=MIN_HELD_WIDTH,
-        palm_table_margin=PALM_TABLE_MARGIN,
+        approach_lag=APPROACH_LAG,
     )
     for oid, obj in world.objects.items():
         pieces = [_piece(str(p)) for p in obj.model.collision_meshes]
-        out.add_object(oid, world.object_pose(oid), pieces)
+        threshold = BREAKING_FACTOR * bullet_size(pieces)
+        out.add_object(oid, world.object_pose(oid), pieces, threshold)
     return out
 
 

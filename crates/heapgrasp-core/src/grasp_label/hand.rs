@@ -137,6 +137,8 @@ impl HandGeometry {
             left: finger(1.0),
             right: finger(-1.0),
             max_opening: self.max_opening,
+            palm_threshold: 0.0,
+            finger_threshold: 0.0,
         }
     }
 }
@@ -167,6 +169,11 @@ pub struct HandParts {
     /// Distance between the finger pads, fully open (m): how far a closing finger may
     /// travel.
     pub max_opening: f64,
+    /// How much farther than the margins the physics engine reports the palm touching
+    /// something (m; a pair of shapes reports at the smaller threshold of the two).
+    pub palm_threshold: f64,
+    /// The same for the fingers (m).
+    pub finger_threshold: f64,
 }
 
 /// An axis-aligned box in the TCP frame.
@@ -228,42 +235,49 @@ impl TcpBox {
     }
 }
 
-/// One convex part of the hand: its hull (TCP frame, millimetres) and bounding box (m).
+/// One convex part of the hand: its hull (TCP frame, millimetres), bounding box (m) and
+/// contact threshold (m).
 #[derive(Debug, Clone)]
 pub(crate) struct Part {
     pub hull: ConvexPolyhedron,
     pub bound: TcpBox,
+    pub threshold: f64,
 }
 
 impl Part {
-    fn new(name: &str, vertices: &[f64]) -> Result<Self> {
+    fn new(name: &str, vertices: &[f64], threshold: f64) -> Result<Self> {
         let (hull, lo, hi) = convex_hull(name, vertices)?;
         Ok(Self {
             hull,
             bound: TcpBox::from_bounds(lo, hi),
+            threshold,
         })
     }
 
-    /// The part together with its copy `d` back along −z: what it covers moving to where
-    /// it is from `d` back (the hull of a convex set and its translate is their sweep).
-    fn swept_back(name: &str, vertices: &[f64], d: f64) -> Result<Self> {
-        let mut both = vertices.to_vec();
-        both.extend(
+    /// What the part covers moving along +z from `far` back to `near` back of where it
+    /// is: the hull of its two copies (a convex set's sweep along a line).
+    fn swept_back(
+        name: &str,
+        vertices: &[f64],
+        far: f64,
+        near: f64,
+        threshold: f64,
+    ) -> Result<Self> {
+        let copy = |d: f64| {
             vertices
                 .chunks_exact(3)
-                .flat_map(|p| [p[0], p[1], p[2] - d]),
-        );
-        Self::new(name, &both)
+                .flat_map(move |p| [p[0], p[1], p[2] - d])
+        };
+        let both: Vec<f64> = copy(near).chain(copy(far)).collect();
+        Self::new(name, &both, threshold)
     }
 }
 
 /// The hand as the labeller queries it.
 #[derive(Debug, Clone)]
 pub(crate) struct Hand {
-    /// Every part (palm, left, right), swept back along −z by the pre-grasp distance.
+    /// Every part (palm, left, right) swept along its approach (see [`Hand::new`]).
     pub swept: Vec<Part>,
-    /// How many of `swept` are the palm's (they come first).
-    pub palm_parts: usize,
     /// The left (+y) and the right (−y) finger's parts.
     pub fingers: [Vec<Part>; 2],
     /// A box around all of `swept`.
@@ -272,13 +286,15 @@ pub(crate) struct Hand {
 }
 
 impl Hand {
-    /// Builds the hulls of `parts` and their approach sweeps.
+    /// Builds the hulls of `parts`, their approach sweeps from `pregrasp_distance` back
+    /// to `lag` back (the hand trails its commanded pose by `lag` while contacts are
+    /// checked, and catches up unchecked; `lag` is clamped to the pre-grasp distance).
     ///
     /// # Errors
-    /// [`Error::Value`] for a bad `max_opening` or a finger without parts; the errors of
-    /// a bad part's vertices (as [`super::GraspScene::add_object`]), named
-    /// `hand.palm[k]`, `hand.left[k]`, `hand.right[k]`.
-    pub fn new(parts: &HandParts, pregrasp_distance: f64) -> Result<Self> {
+    /// [`Error::Value`] for a bad `max_opening` or threshold or a finger without parts;
+    /// the errors of a bad part's vertices (as [`super::GraspScene::add_object`]),
+    /// named `hand.palm[k]`, `hand.left[k]`, `hand.right[k]`.
+    pub fn new(parts: &HandParts, pregrasp_distance: f64, lag: f64) -> Result<Self> {
         if !(parts.max_opening > 0.0 && parts.max_opening <= 1.0) {
             return Err(Error::value(
                 "hand.max_opening",
@@ -286,6 +302,15 @@ impl Hand {
                 "must be in (0, 1] m",
             ));
         }
+        for (name, t) in [
+            ("hand.palm_threshold", parts.palm_threshold),
+            ("hand.finger_threshold", parts.finger_threshold),
+        ] {
+            if !(0.0..=0.05).contains(&t) {
+                return Err(Error::value(name, t, "must be in [0, 0.05] m"));
+            }
+        }
+        let lag = lag.min(pregrasp_distance);
         let mut swept = Vec::new();
         let mut fingers = [Vec::new(), Vec::new()];
         for (group, list) in [
@@ -300,12 +325,23 @@ impl Hand {
                     "a finger needs at least 1 part",
                 ));
             }
+            let threshold = if group == "palm" {
+                parts.palm_threshold
+            } else {
+                parts.finger_threshold
+            };
             for (k, v) in list.iter().enumerate() {
                 let name = format!("hand.{group}[{k}]");
-                swept.push(Part::swept_back(&name, v, pregrasp_distance)?);
+                swept.push(Part::swept_back(
+                    &name,
+                    v,
+                    pregrasp_distance,
+                    lag,
+                    threshold,
+                )?);
                 match group {
-                    "left" => fingers[0].push(Part::new(&name, v)?),
-                    "right" => fingers[1].push(Part::new(&name, v)?),
+                    "left" => fingers[0].push(Part::new(&name, v, threshold)?),
+                    "right" => fingers[1].push(Part::new(&name, v, threshold)?),
                     _ => {}
                 }
             }
@@ -316,7 +352,6 @@ impl Hand {
             .fold(swept[0].bound, |acc, p| acc.union(&p.bound));
         Ok(Self {
             swept,
-            palm_parts: parts.palm.len(),
             fingers,
             bound,
             max_opening: parts.max_opening,

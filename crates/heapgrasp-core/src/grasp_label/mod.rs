@@ -30,8 +30,12 @@
 //! table none): the hand counts as touching an object closer than `hand_margin +
 //! object_margin` and the table closer than `hand_margin`, and a finger closing on an
 //! object stops that far from it, so widths include the margins as the simulator's do.
-//! The palm may have its own distance to the table (`palm_table_margin`): PyBullet
-//! reports the Panda palm touching the table from about 3.5 mm.
+//! Bullet also reports a contact between shapes up to its contact-breaking threshold
+//! apart (2 % of a shape's size; of a pair, the smaller shape's): each hand part and
+//! object adds its `threshold`. While approaching, the hand trails its commanded pose by
+//! `approach_lag` and contacts are checked only on the way, so the sweep ends that much
+//! short of the grasp pose.
+
 //!
 //! Grasps are labelled in parallel over contiguous chunks; each label depends on its
 //! grasp alone, so results do not depend on the thread count.
@@ -128,13 +132,12 @@ pub struct LabelParams {
     pub friction: f64,
     /// Collision margin of the hand's shapes (m).
     pub hand_margin: f64,
-    /// Distance from the table under which the palm touches it (m); the fingers touch
-    /// it closer than `hand_margin`.
-    pub palm_table_margin: f64,
     /// Collision margin of the objects' convex pieces (m); the table has none.
     pub object_margin: f64,
     /// Smallest closed width that holds an object (m).
     pub min_width: f64,
+    /// How far the hand trails its commanded pose while it approaches (m).
+    pub approach_lag: f64,
 }
 
 impl LabelParams {
@@ -146,7 +149,7 @@ impl LabelParams {
         let checks = [
             ("pregrasp_distance", self.pregrasp_distance, 0.0, 1.0),
             ("hand_margin", self.hand_margin, 0.0, 0.05),
-            ("palm_table_margin", self.palm_table_margin, 0.0, 0.05),
+            ("approach_lag", self.approach_lag, 0.0, 0.05),
             ("object_margin", self.object_margin, 0.0, 0.05),
             ("min_width", self.min_width, 0.0, 1.0),
         ];
@@ -173,6 +176,8 @@ pub struct GraspLabeller {
     params: LabelParams,
     hand: Hand,
     cos_cone: f64,
+    /// The largest contact threshold of any hand part or object.
+    max_threshold: f64,
 }
 
 /// What a closing finger meets first: the object's index and the contact normal out of
@@ -208,6 +213,18 @@ fn rot_to_parry(r: &Matrix3<f64>) -> Rot3 {
 /// centimetres up they agree with the exact values to the polyhedra's own precision.
 pub(crate) const MM: f64 = 1000.0;
 
+fn hand_threshold(hand: &Hand) -> f64 {
+    hand.swept.iter().map(|p| p.threshold).fold(0.0, f64::max)
+}
+
+fn scene_threshold(scene: &GraspScene) -> f64 {
+    scene
+        .objects
+        .iter()
+        .map(|o| o.threshold)
+        .fold(0.0, f64::max)
+}
+
 /// Fewest grasps worth a thread of their own.
 const MIN_GRASPS_PER_THREAD: usize = 32;
 
@@ -220,7 +237,7 @@ impl GraspLabeller {
     /// named `hand.left[k]` etc.
     pub fn new(scene: GraspScene, hand: &HandParts, params: LabelParams) -> Result<Self> {
         params.validate()?;
-        let hand = Hand::new(hand, params.pregrasp_distance)?;
+        let hand = Hand::new(hand, params.pregrasp_distance, params.approach_lag)?;
         if params.min_width > hand.max_opening {
             return Err(Error::value(
                 "min_width",
@@ -231,11 +248,13 @@ impl GraspLabeller {
                 ),
             ));
         }
+        let max_threshold = hand_threshold(&hand).max(scene_threshold(&scene));
         Ok(Self {
             scene,
             hand,
             cos_cone: params.friction.atan().cos(),
             params,
+            max_threshold,
         })
     }
 
@@ -253,8 +272,16 @@ impl GraspLabeller {
     ///
     /// # Errors
     /// As [`GraspScene::add_object`].
-    pub fn add_object(&mut self, id: i32, obj2world: Pose, pieces: &[&[f64]]) -> Result<()> {
-        self.scene.add_object(id, obj2world, pieces)
+    pub fn add_object(
+        &mut self,
+        id: i32,
+        obj2world: Pose,
+        pieces: &[&[f64]],
+        threshold: f64,
+    ) -> Result<()> {
+        self.scene.add_object(id, obj2world, pieces, threshold)?;
+        self.max_threshold = self.max_threshold.max(threshold);
+        Ok(())
     }
 
     /// Labels grasps given as TCP poses (`tcp2world`: z the approach, fingers closing
@@ -289,20 +316,22 @@ impl GraspLabeller {
             return fail(Reason::Collision);
         }
         let margin = p.hand_margin + p.object_margin;
-        let near = self.near_pieces(tcp2world, margin);
+        let reach = margin + self.max_threshold;
+        let near = self.near_pieces(tcp2world, reach);
         for n in &near {
             let piece = &self.scene.pieces[n.piece];
-            let reach = piece.radius + margin;
+            let object_threshold = self.scene.objects[piece.object].threshold;
             let pos12 = n.pose_from(&[0.0; 3]);
             for part in &self.hand.swept {
-                if !part.bound.near(&n.centre, reach) {
+                if !part.bound.near(&n.centre, piece.radius + reach) {
                     continue;
                 }
+                let pair = margin + part.threshold.min(object_threshold);
                 let touching = closest_points_support_map_support_map(
                     &pos12,
                     &part.hull,
                     &piece.hull,
-                    (margin * MM) as f32,
+                    (pair * MM) as f32,
                 );
                 if !matches!(touching, ClosestPoints::Disjoint) {
                     return fail(Reason::Collision);
@@ -333,21 +362,17 @@ impl GraspLabeller {
         }
     }
 
-    /// Whether a swept part of the hand comes within its margin of the table.
+    /// Whether a swept part of the hand comes within its margin and threshold of the
+    /// table (a box shape: no margin of its own, and larger than any hand part).
     fn touches_table(&self, tcp2world: &Pose) -> bool {
         let r = tcp2world.rotation();
         let rz = [r[(2, 0)], r[(2, 1)], r[(2, 2)]];
         let tz = tcp2world.translation().z;
-        let table = self.scene.table_z();
+        let table = self.scene.table_z() + self.params.hand_margin;
         // World −z in the TCP frame: the direction of each part's lowest point.
         let down = PVec::new(-rz[0] as f32, -rz[1] as f32, -rz[2] as f32);
-        self.hand.swept.iter().enumerate().any(|(k, part)| {
-            let limit = table
-                + if k < self.hand.palm_parts {
-                    self.params.palm_table_margin
-                } else {
-                    self.params.hand_margin
-                };
+        self.hand.swept.iter().any(|part| {
+            let limit = table + part.threshold;
             if part.bound.lowest_z(&rz, tz) >= limit {
                 return false;
             }

@@ -11,11 +11,12 @@ use super::convex::convex_hull;
 use crate::camera::Pose;
 use crate::error::{Error, Result};
 
-/// One object: its id and pose.
+/// One object: its id, pose and contact threshold.
 #[derive(Debug, Clone)]
 pub(crate) struct SceneObject {
     pub id: i32,
     pub obj2world: Pose,
+    pub threshold: f64,
 }
 
 /// One convex piece of an object, in the object's frame (the hull in millimetres).
@@ -74,14 +75,30 @@ impl GraspScene {
     }
 
     /// Adds object `id` at `obj2world` made of `pieces`: each a flat `(V, 3)` array of
-    /// vertices in the object frame (metres), collided as its convex hull.
+    /// vertices in the object frame (metres), collided as its convex hull. `threshold`:
+    /// how much farther than the margins the physics engine reports the object touching
+    /// something (m; a pair reports at the smaller threshold of the two).
     ///
     /// # Errors
-    /// [`Error::Value`] for an id below 0 or already in the scene, or no pieces;
+    /// [`Error::Value`] for an id below 0 or already in the scene, no pieces, or a
+    /// threshold outside [0, 0.05] m;
     /// [`Error::Shape`] for a piece whose length is not a multiple of 3;
     /// [`Error::NonFinite`] for a NaN or infinite vertex; [`Error::Mesh`] for a piece
     /// whose vertices do not span a volume.
-    pub fn add_object(&mut self, id: i32, obj2world: Pose, pieces: &[&[f64]]) -> Result<()> {
+    pub fn add_object(
+        &mut self,
+        id: i32,
+        obj2world: Pose,
+        pieces: &[&[f64]],
+        threshold: f64,
+    ) -> Result<()> {
+        if !(0.0..=0.05).contains(&threshold) {
+            return Err(Error::value(
+                "threshold",
+                threshold,
+                "must be in [0, 0.05] m",
+            ));
+        }
         if id < 0 {
             return Err(Error::value("id", id, "must be >= 0"));
         }
@@ -112,7 +129,11 @@ impl GraspScene {
                 radius,
             });
         }
-        self.objects.push(SceneObject { id, obj2world });
+        self.objects.push(SceneObject {
+            id,
+            obj2world,
+            threshold,
+        });
         self.pieces.extend(built);
         Ok(())
     }

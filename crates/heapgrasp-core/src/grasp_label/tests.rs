@@ -23,9 +23,9 @@ fn params() -> LabelParams {
         pregrasp_distance: 0.05,
         friction: 1.0,
         hand_margin: 0.001,
-        palm_table_margin: 0.001,
         object_margin: 0.001,
         min_width: 0.004,
+        approach_lag: 0.0,
     }
 }
 
@@ -82,7 +82,7 @@ fn labeller(objects: &[(i32, [f64; 3], Vec<f64>)]) -> GraspLabeller {
     let mut l =
         GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), params()).unwrap();
     for (id, at, piece) in objects {
-        l.add_object(*id, translation(*at), &[piece]).unwrap();
+        l.add_object(*id, translation(*at), &[piece], 0.0).unwrap();
     }
     l
 }
@@ -167,7 +167,7 @@ fn a_side_grasp_whose_palm_hits_the_table_collides() {
 }
 
 #[test]
-fn the_palm_keeps_its_own_distance_from_the_table() {
+fn contact_thresholds_widen_what_touches() {
     // The side grasp's palm 2 mm above the table.
     let side = pose(
         [0.0, 0.0, 1.0],
@@ -176,12 +176,42 @@ fn the_palm_keeps_its_own_distance_from_the_table() {
         [0.1, 0.0, 0.032 + 0.002],
     );
     assert_eq!(labeller(&[]).label_one(&side).reason, Reason::Empty);
-    let mut p = params();
-    p.palm_table_margin = 0.0035;
-    let l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), p).unwrap();
+    let mut hand = panda().parts();
+    hand.palm_threshold = 0.0025;
+    hand.finger_threshold = 0.0012;
+    let l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), &hand, params()).unwrap();
     assert_eq!(l.label_one(&side).reason, Reason::Collision);
-    // The fingers keep the hand's margin: a top-down grasp 2 mm above the table is free.
-    let low = top_down([0.0, 0.0, 0.0072 + 0.002]);
+    // The fingers have their own: a top-down grasp 2 mm above the table is free.
+    let low = top_down([0.0, 0.0, 0.0072 + 0.0025]);
+    assert_eq!(l.label_one(&low).reason, Reason::Empty);
+    // A pair takes the smaller threshold: a finger whose outer side passes 2.5 mm
+    // beside a box touches it only when the box's threshold reaches past the margins too.
+    let beside = top_down([0.0, 0.015 + 0.0025 + 0.056, 0.045]);
+    for (object, expect) in [(0.0, Reason::Empty), (0.001, Reason::Collision)] {
+        let mut l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), &hand, params()).unwrap();
+        l.add_object(
+            1,
+            translation([0.0, 0.0, 0.03]),
+            &[&box_piece([0.015, 0.015, 0.03])],
+            object,
+        )
+        .unwrap();
+        assert_eq!(
+            l.label_one(&beside).reason,
+            expect,
+            "object threshold {object}"
+        );
+    }
+}
+
+#[test]
+fn the_approach_lag_shortens_the_sweep() {
+    // Fingertips 0.5 mm into the table's margin at the grasp pose.
+    let low = top_down([0.0, 0.0, 0.0072 + 0.0005]);
+    assert_eq!(labeller(&[]).label_one(&low).reason, Reason::Collision);
+    let mut p = params();
+    p.approach_lag = 0.001;
+    let l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), p).unwrap();
     assert_eq!(l.label_one(&low).reason, Reason::Empty);
 }
 
@@ -204,7 +234,7 @@ fn a_sphere_is_held_through_its_centre_and_not_past_the_friction_cone() {
     grippy.friction = 2.0;
     let mut l2 =
         GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), grippy).unwrap();
-    l2.add_object(3, translation([0.0, 0.0, r]), &[&sphere_piece(r)])
+    l2.add_object(3, translation([0.0, 0.0, r]), &[&sphere_piece(r)], 0.0)
         .unwrap();
     assert_eq!(l2.label_one(&tip_at(55.0)).reason, Reason::Success);
 }
@@ -234,6 +264,7 @@ fn a_thin_sheet_closes_too_narrow() {
         1,
         translation([0.0, 0.0, 0.03]),
         &[&box_piece([0.015, 0.0001, 0.03])],
+        0.0,
     )
     .unwrap();
     assert_eq!(
@@ -330,27 +361,24 @@ fn bad_parameters_and_pieces_are_errors() {
     let mut s = GraspScene::new(0.0).unwrap();
     let flat = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0];
     assert!(matches!(
-        s.add_object(1, Pose::identity(), &[&flat]),
+        s.add_object(1, Pose::identity(), &[&flat], 0.0),
         Err(Error::Mesh { .. })
     ));
     let mut nan = box_piece([0.01; 3]);
     nan[4] = f64::NAN;
     assert!(matches!(
-        s.add_object(1, Pose::identity(), &[&nan]),
+        s.add_object(1, Pose::identity(), &[&nan], 0.0),
         Err(Error::NonFinite { position, .. }) if position == "[1, 1]"
     ));
     assert!(matches!(
-        s.add_object(1, Pose::identity(), &[&[0.0; 7]]),
+        s.add_object(1, Pose::identity(), &[&[0.0; 7]], 0.0),
         Err(Error::Shape { .. })
     ));
-    assert!(s.add_object(1, Pose::identity(), &[]).is_err());
-    s.add_object(1, Pose::identity(), &[&box_piece([0.01; 3])])
-        .unwrap();
-    assert!(s
-        .add_object(1, Pose::identity(), &[&box_piece([0.01; 3])])
-        .is_err());
-    assert!(s
-        .add_object(-2, Pose::identity(), &[&box_piece([0.01; 3])])
-        .is_err());
+    assert!(s.add_object(1, Pose::identity(), &[], 0.0).is_err());
+    let cube = box_piece([0.01; 3]);
+    assert!(s.add_object(1, Pose::identity(), &[&cube], -0.001).is_err());
+    s.add_object(1, Pose::identity(), &[&cube], 0.0).unwrap();
+    assert!(s.add_object(1, Pose::identity(), &[&cube], 0.0).is_err());
+    assert!(s.add_object(-2, Pose::identity(), &[&cube], 0.0).is_err());
     assert_eq!((s.len(), s.piece_count()), (1, 1));
 }
