@@ -63,9 +63,10 @@ def write_dataset(
     objects: tuple[str, ...] | None = None,
     shard_size: int = 3,
     resolution: int = R,
+    grid: str = "occupancy",
 ) -> Path:
-    """A grasp dataset in the format of ``heapgrasp data grasps``: boxes on the floor of
-    the grid, grasps at voxels next to them, success where the box below is tall."""
+    """A grasp dataset of ``grid`` in the format of ``heapgrasp data grasps``: boxes on
+    the floor of the grid, grasps at voxels over them (successes) and elsewhere."""
     g = np.random.default_rng(seed)
     r = resolution
     out.mkdir(parents=True)
@@ -95,8 +96,7 @@ def write_dataset(
             per["scene"].append(np.full(count, i))
         count = sum(len(v) for v in per["voxel"])
         arrays = {
-            "occupancy": occ,
-            "tsdf": tsdf,
+            grid: occ if grid == "occupancy" else tsdf,
             "origin": np.tile(np.asarray(ORIGIN), (m, 1)),
             "voxel_size": np.full(m, VOXEL),
             "scene_seed": np.arange(start, start + m, dtype=np.int64),
@@ -120,7 +120,13 @@ def write_dataset(
         "split": split,
         "root_seed": seed,
         "objects": list(objects if objects is not None else (f"{split}-object-{seed}",)),
-        "config": {"resolution": r, "cube_size": SIZE, "lam": 0.9, "max_opening": 0.08},
+        "config": {
+            "input": grid,
+            "resolution": r,
+            "cube_size": SIZE,
+            "lam": 0.9,
+            "max_opening": 0.08,
+        },
         "shards": shards,
         "samples": n,
     }
@@ -143,13 +149,19 @@ def test_the_data_modules_format_is_read() -> None:
     assert grasps.FORMAT == DATA_FORMAT
 
 
-def test_dataset_loads_either_grid_and_keeps_each_scenes_grasps(root: Path) -> None:
+def test_dataset_loads_either_grid_and_keeps_each_scenes_grasps(root: Path, tmp_path: Path) -> None:
     occ = load_grasp_dataset(root / "train")
-    tsdf = load_grasp_dataset(root / "train", input_kind="tsdf", workers=2)
     raw = [np.load(p) for p in sorted((root / "train").glob("shard-*.npz"))]
-    assert len(occ) == 4 and occ.grids.dtype == np.uint8 and tsdf.grids.dtype == np.float32
+    assert len(occ) == 4 and occ.grids.dtype == np.float32 and occ.input_kind == "occupancy"
     np.testing.assert_array_equal(occ.grids, np.concatenate([r["occupancy"] for r in raw]))
-    np.testing.assert_array_equal(tsdf.grids, np.concatenate([r["tsdf"] for r in raw]))
+    made = write_dataset(tmp_path / "tsdf", n=4, seed=1, grid="tsdf")
+    tsdf = load_grasp_dataset(made, workers=2)
+    raw_tsdf = [np.load(p) for p in sorted(made.glob("shard-*.npz"))]
+    assert tsdf.input_kind == "tsdf" and tsdf.grids.dtype == np.float32
+    np.testing.assert_array_equal(tsdf.grids, np.concatenate([r["tsdf"] for r in raw_tsdf]))
+    np.testing.assert_array_equal(tsdf.voxel, occ.voxel)
+    with pytest.raises(GraspDataError, match="a dataset of 'tsdf' grids"):
+        load_grasp_dataset(made, input_kind="occupancy")
     assert occ.grasps == sum(len(r["grasp_label"]) for r in raw)
     first = raw[0]
     rows = occ.scene_grasps(1)
@@ -171,12 +183,11 @@ def test_dataset_errors_name_the_file(tmp_path: Path) -> None:
     np.savez_compressed(shard, **arrays)
     with pytest.raises(GraspDataError, match=r"shard-00000.npz: 'grasp_voxel' outside"):
         load_grasp_dataset(bad)
-    del arrays["tsdf"]
+    del arrays["occupancy"]
     arrays["grasp_voxel"][0] = (0, 0, 0)
     np.savez_compressed(shard, **arrays)
-    load_grasp_dataset(bad)
-    with pytest.raises(GraspDataError, match=r"missing array\(s\) tsdf"):
-        load_grasp_dataset(bad, input_kind="tsdf")
+    with pytest.raises(GraspDataError, match=r"missing array\(s\) occupancy"):
+        load_grasp_dataset(bad)
     with pytest.raises(GraspDataError, match="no such directory"):
         find_datasets([tmp_path / "nothing"])
     (tmp_path / "empty").mkdir()
@@ -337,9 +348,12 @@ def test_train_grasps_command_writes_a_network_the_planner_runs(tmp_path: Path, 
     an ONNX file NetworkGraspPlanner loads and that gives PyTorch's outputs."""
     from heapgrasp.planning.grasp_network import NetworkGraspPlanner
 
+    data = tmp_path / "data"
+    for split, n, seed in (("train", 4, 1), ("val", 2, 2), ("test", 2, 3)):
+        write_dataset(data / split, split=split, n=n, seed=seed, grid="tsdf")
     out = tmp_path / "net"
-    args = ["train", "grasps", str(root), "--out", str(out), "--epochs", "1"]
-    assert main([*args, "--batch-size", "4", "--no-progress", "--input", "tsdf", *TINY]) == 0
+    args = ["train", "grasps", str(data), "--out", str(out), "--epochs", "1"]
+    assert main([*args, "--batch-size", "4", "--no-progress", *TINY]) == 0
     for name in ("checkpoint.safetensors", "best.safetensors", "metrics.png"):
         assert (out / name).stat().st_size > 0, name
     rows = (out / "metrics.csv").read_text().splitlines()
@@ -356,7 +370,7 @@ def test_train_grasps_command_writes_a_network_the_planner_runs(tmp_path: Path, 
     net = load_grasp_network(out / "grasp_network.safetensors")
     planner = NetworkGraspPlanner(out / "grasp_network.onnx")
     assert planner.network.hparams["input_kind"] == "tsdf"
-    grid = load_grasp_dataset(root / "val", input_kind="tsdf").grids[0]
+    grid = load_grasp_dataset(data / "val").grids[0]
     volumes = planner.predict(grid, GridFrame(ORIGIN, SIZE, R))
     with torch.no_grad():
         quality, rotation, width = net(torch.from_numpy(grid)[None, None])
@@ -386,6 +400,7 @@ def test_train_grasps_command_errors_exit_2_naming_the_input(
         ([str(root), "--resume"], "no checkpoint.safetensors"),
         ([str(root), "--device", "gpu"], "'gpu'"),
         ([str(root), "--input", "depth"], "invalid choice: 'depth'"),
+        ([str(root), "--input", "tsdf"], "a dataset of 'occupancy' grids"),
         ([str(root), "--channels", "8", "0", "8"], "must be >= 1, got 0"),
         ([str(root), "--batch-size", "x"], "not an integer: 'x'"),
         ([str(root), "--lr", "-1"], "-1"),

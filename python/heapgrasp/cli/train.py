@@ -31,7 +31,6 @@ import argparse
 import datetime as _dt
 import importlib
 import json
-import math
 import os
 import platform
 import shlex
@@ -45,17 +44,6 @@ from heapgrasp.bench.argtypes import float_in, int_at_least
 __all__ = ["add_parser"]
 
 
-def _finite(value: Any) -> Any:
-    """``value`` with NaN and infinities as None (strict JSON)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    return value
-
-
 def _config_error(message: str) -> Exception:
     """heapgrasp's configuration error (exit status 2, no traceback)."""
     from heapgrasp.loop.config import ConfigError
@@ -63,16 +51,22 @@ def _config_error(message: str) -> Exception:
     return ConfigError(message)
 
 
-def _views(args: argparse.Namespace) -> int:
+def _require_training(command: str) -> None:
+    """A ConfigError naming what to install when PyTorch or safetensors is missing."""
     try:
         importlib.import_module("heapgrasp.nets")
-        import safetensors  # noqa: F401
-        import torch
+        importlib.import_module("safetensors")
     except ImportError as exc:
         raise _config_error(
-            f"heapgrasp train views needs PyTorch and safetensors ({exc}): "
+            f"heapgrasp train {command} needs PyTorch and safetensors ({exc}): "
             "pip install 'heapgrasp[train]'"
         ) from None
+
+
+def _views(args: argparse.Namespace) -> int:
+    _require_training("views")
+    import torch
+
     import heapgrasp
     from heapgrasp.nets.device import resolve_device
     from heapgrasp.nets.train_views import (
@@ -81,6 +75,7 @@ def _views(args: argparse.Namespace) -> int:
         save_view_network,
         train,
     )
+    from heapgrasp.nets.training import finite
     from heapgrasp.nets.view_data import (
         ViewDataError,
         check_compatible,
@@ -159,7 +154,7 @@ def _views(args: argparse.Namespace) -> int:
     }
     if test_data is not None:
         metrics["test"] = evaluate(result.net, test_data, loss=config.loss, device=device)
-    metrics = _finite(metrics)
+    metrics = finite(metrics)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, allow_nan=False) + "\n")
     command = "heapgrasp " + shlex.join(getattr(args, "argv", sys.argv[1:]))
     data = {
@@ -230,15 +225,9 @@ def _views(args: argparse.Namespace) -> int:
 
 
 def _grasps(args: argparse.Namespace) -> int:
-    try:
-        importlib.import_module("heapgrasp.nets")
-        import safetensors  # noqa: F401
-        import torch
-    except ImportError as exc:
-        raise _config_error(
-            f"heapgrasp train grasps needs PyTorch and safetensors ({exc}): "
-            "pip install 'heapgrasp[train]'"
-        ) from None
+    _require_training("grasps")
+    import torch
+
     from heapgrasp.nets.device import resolve_device
     from heapgrasp.nets.grasp_data import (
         GraspDataError,
@@ -259,18 +248,19 @@ def _grasps(args: argparse.Namespace) -> int:
     workers = args.workers or 1
     try:
         device = resolve_device(args.device)
+        dirs = find_datasets(args.data)
+        first = load_grasp_dataset(dirs[0], input_kind=args.input, workers=workers)
         config = GraspTrainConfig(
             epochs=args.epochs,
             batch_size=args.batch_size,
             lr=args.lr,
             seed=args.seed,
-            input_kind=args.input,
+            input_kind=first.input_kind,
             channels=tuple(args.channels),
             head_kernel=args.head_kernel,
         )
-        found = [
-            load_grasp_dataset(d, input_kind=config.input_kind, workers=workers)
-            for d in find_datasets(args.data)
+        found = [first] + [
+            load_grasp_dataset(d, input_kind=config.input_kind, workers=workers) for d in dirs[1:]
         ]
         split = {s: [d for d in found if d.split == s] for s in ("train", "val", "test")}
         where = ", ".join(args.data)
@@ -430,8 +420,8 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
             "label and its finger-swapped twin) and 0.01 x the squared width error in "
             "voxels. Adam at a constant learning rate. After every epoch: "
             "OUT/checkpoint.safetensors, OUT/metrics.csv and OUT/metrics.png (loss "
-            "terms; on the validation data precision and recall of quality >= 0.5 and "
-            ">= 0.9, average precision, width error (m) and rotation error (degrees) on "
+            "terms; on the validation data precision and recall of quality >= 0.5, 0.8 "
+            "and 0.9, average precision, width error (m) and rotation error (degrees) on "
             "the successful grasps); the epoch with the lowest validation loss is kept. "
             "At the end: OUT/grasp_network.safetensors, its model card "
             "OUT/grasp_network.json, OUT/grasp_network.onnx (what 'heapgrasp run "
@@ -443,7 +433,7 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
             "DATA/val, DATA/test).\n"
             "example:\n"
             "  heapgrasp train grasps runs/grasps --out runs/grasp-net --epochs 20\n"
-            "  heapgrasp train grasps runs/grasps --out runs/vgn-net --input tsdf\n"
+            "  heapgrasp train grasps runs/vgn-grasps --out runs/vgn-net   # tsdf data\n"
             "  heapgrasp train grasps runs/grasps --out runs/grasp-net --epochs 20 "
             "--resume   # continue after a stop"
         ),
@@ -453,9 +443,10 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     g.add_argument(
         "--input",
         choices=("occupancy", "tsdf"),
-        default="occupancy",
+        default=None,
         help="the grid the network reads: occupancy (S>=lambda, for heapgrasp and no-vp) "
-        "or tsdf (for the vgn method) (default occupancy)",
+        "or tsdf (for the vgn method); every dataset must hold it (default: the one the "
+        "datasets were made with, 'heapgrasp data grasps --input')",
     )
     g.add_argument("--epochs", type=int_at_least(1), default=20, help="epochs (default 20)")
     g.add_argument(

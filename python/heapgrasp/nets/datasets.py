@@ -9,12 +9,15 @@ from its documented form: a manifest with ``format``, ``version``, ``split``,
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+import zipfile
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, TypeVar
 
-__all__ = ["read_manifest", "read_shards"]
+import numpy as np
+
+__all__ = ["open_shard", "read_manifest", "read_shards"]
 
 _T = TypeVar("_T")
 
@@ -76,3 +79,32 @@ def read_shards(
         entries.append((root / name, samples))
     with ThreadPoolExecutor(max(1, workers)) as pool:
         return [s for s in pool.map(lambda e: load(e[0], e[1]), entries) if s is not None]
+
+
+def open_shard(
+    file: Path, names: Sequence[str], expected: int, *, what: str, error: type[Exception]
+) -> dict[str, np.ndarray] | None:
+    """The arrays ``names`` of shard ``file``, whose ``k`` array counts ``expected``
+    samples (the manifest's count; ``what`` names them in messages); None when it holds
+    none. ``error`` naming the file when it is missing, unreadable, lacks an array or
+    holds another count."""
+    try:
+        with np.load(file, allow_pickle=False) as data:
+            missing = [k for k in names if k not in data.files]
+            if missing:
+                raise error(f"{file}: missing array(s) {', '.join(missing)}")
+            n = int(data["k"].shape[0]) if data["k"].ndim == 1 else -1
+            if n != expected:
+                raise error(
+                    f"{file}: {n} {what}, the manifest says {expected} "
+                    "(a shard rewritten without its manifest?)"
+                )
+            if n == 0:
+                return None
+            return {name: data[name] for name in names}
+    except FileNotFoundError:
+        raise error(f"{file}: listed in manifest.json but missing") from None
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        if isinstance(exc, error):
+            raise
+        raise error(f"{file}: unreadable shard ({exc})") from None

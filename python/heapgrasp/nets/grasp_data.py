@@ -4,8 +4,8 @@ exact augmentations (HEAPGrasp §IV-B eq. 11, VGN's training).
 * :func:`load_grasp_dataset` / :func:`find_datasets` / :func:`concatenate` — directories
   written by ``heapgrasp data grasps`` (``manifest.json`` and ``shard-NNNNN.npz``, the
   layout of :mod:`heapgrasp.data.grasps`), read whole and checked. Only the grid the
-  network reads is kept: ``occupancy`` (``Ŝ≥λ``, 0/1, kept as uint8: 64 KiB a scene at
-  R = 40) or ``tsdf`` (float32).
+  network reads is kept, as it was written: ``occupancy`` (``Ŝ≥λ`` as the loop feeds it:
+  0 or Ŝ ∈ [λ, 1]) or ``tsdf`` (float32, 256 KiB a scene at R = 40).
 * :func:`make_batch` — ``B`` scenes and all their labelled grasps: one forward pass per
   scene gives the network's output at every labelled voxel (VGN runs one pass per
   grasp).
@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 import os
-import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,7 +36,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.nets.datasets import read_manifest, read_shards
+from heapgrasp.nets.datasets import open_shard, read_manifest, read_shards
 
 __all__ = [
     "DATA_FORMAT",
@@ -119,8 +118,8 @@ class GraspSource:
 class GraspDataset:
     """Scenes and their labelled grasps from one or more grasp dataset directories.
 
-    Per scene (leading axis ``S``): ``grids`` ``(S, R, R, R)`` indexed ``[x, y, z]``
-    (uint8 0/1 for ``occupancy``, float32 for ``tsdf``), ``origin`` float64 ``(S, 3)``
+    Per scene (leading axis ``S``): ``grids`` float32 ``(S, R, R, R)`` indexed
+    ``[x, y, z]`` (the dataset's ``occupancy`` or ``tsdf``), ``origin`` float64 ``(S, 3)``
     (the grid's minimum corner, world metres), ``voxel_size`` float64 ``(S,)``,
     ``scene_seed``, ``scene_index``, ``k`` int64 ``(S,)``, and ``offsets`` int64
     ``(S + 1,)``: scene ``s``'s grasps are rows ``offsets[s]:offsets[s + 1]`` of the
@@ -134,7 +133,7 @@ class GraspDataset:
     input_kind: str
     geometry: Mapping[str, Any]
     sources: tuple[GraspSource, ...]
-    grids: npt.NDArray[np.uint8] | F32
+    grids: F32
     origin: F64
     voxel_size: F64
     scene_seed: I64
@@ -187,26 +186,10 @@ def _check_kind(input_kind: str) -> None:
 
 def _load_shard(file: Path, expected: int, input_kind: str, r: int) -> dict[str, np.ndarray] | None:
     names = [input_kind, *_PER_SCENE, *_PER_GRASP]
-    try:
-        with np.load(file, allow_pickle=False) as data:
-            missing = [k for k in names if k not in data.files]
-            if missing:
-                raise GraspDataError(f"{file}: missing array(s) {', '.join(missing)}")
-            n = int(data["k"].shape[0]) if data["k"].ndim == 1 else -1
-            if n != expected:
-                raise GraspDataError(
-                    f"{file}: {n} scenes, the manifest says {expected} "
-                    "(a shard rewritten without its manifest?)"
-                )
-            if n == 0:
-                return None
-            out = {name: data[name] for name in names}
-    except FileNotFoundError:
-        raise GraspDataError(f"{file}: listed in manifest.json but missing") from None
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        if isinstance(exc, GraspDataError):
-            raise
-        raise GraspDataError(f"{file}: unreadable shard ({exc})") from None
+    out = open_shard(file, names, expected, what="scenes", error=GraspDataError)
+    if out is None:
+        return None
+    n = expected
     grid = out.pop(input_kind)
     if grid.dtype != np.float32 or grid.shape != (n, r, r, r):
         raise GraspDataError(
@@ -224,12 +207,7 @@ def _load_shard(file: Path, expected: int, input_kind: str, r: int) -> dict[str,
                 f"{np.dtype(dtype)} {(lead, *shape)}"
             )
     _check_grasps(file, out, n, r)
-    if input_kind == "occupancy":
-        if not np.isin(grid, (0.0, 1.0)).all():
-            raise GraspDataError(f"{file}: 'occupancy' holds values other than 0 and 1")
-        out["grids"] = grid.astype(np.uint8)
-    else:
-        out["grids"] = grid
+    out["grids"] = grid
     return out
 
 
@@ -263,18 +241,18 @@ def _geometry(config: Mapping[str, Any], where: str) -> dict[str, Any]:
 
 
 def load_grasp_dataset(
-    path: str | os.PathLike[str], *, input_kind: str = "occupancy", workers: int = 1
+    path: str | os.PathLike[str], *, input_kind: str | None = None, workers: int = 1
 ) -> GraspDataset:
-    """Reads a grasp dataset directory written by ``heapgrasp data grasps``, keeping the
-    ``input_kind`` grid (``occupancy`` or ``tsdf``).
+    """Reads a grasp dataset directory written by ``heapgrasp data grasps``.
 
-    Every shard the manifest lists is read (``workers`` threads) and checked against the
-    manifest's scene count and ``R``, the arrays' dtypes and shapes, and each other
-    (grasp scenes and voxels in range, finite values, 0/1 labels, unit quaternions).
-    Raises :class:`GraspDataError` naming the directory or file otherwise, or when it
-    holds no scene.
+    ``input_kind``: the grid to read, ``occupancy`` or ``tsdf``; None: the one the
+    dataset was made with (its manifest's ``config["input"]``; ``occupancy`` in a
+    manifest without it). Every shard the manifest lists is read (``workers`` threads)
+    and checked against the manifest's scene count and ``R``, the arrays' dtypes and
+    shapes, and each other (grasp scenes and voxels in range, finite values, 0/1 labels,
+    unit quaternions). Raises :class:`GraspDataError` naming the directory or file
+    otherwise, when the dataset holds another grid, or when it holds no scene.
     """
-    _check_kind(input_kind)
     root = Path(path)
     manifest = read_manifest(
         root,
@@ -284,6 +262,15 @@ def load_grasp_dataset(
         command="heapgrasp data grasps",
         error=GraspDataError,
     )
+    made = manifest["config"].get("input")
+    if input_kind is None:
+        input_kind = made if isinstance(made, str) else "occupancy"
+    _check_kind(input_kind)
+    if isinstance(made, str) and made != input_kind:
+        raise GraspDataError(
+            f"{root}: a dataset of {made!r} grids (made with --input {made}); the "
+            f"{input_kind!r} network needs one made with --input {input_kind}"
+        )
     geometry = _geometry(manifest["config"], f"{root / 'manifest.json'}")
     r = int(geometry["resolution"])
     shards = read_shards(

@@ -22,7 +22,7 @@ other two. The network still outputs metres (what the planner reads).
 
 **Metrics** (:func:`grasp_metrics`, on the validation data after every epoch, and on
 the test data at the end): the loss and its terms; precision and recall of ``quality ≥
-ε`` for ε = 0.5 and 0.9 (predicted positive against labelled positive); the average
+ε`` for ε in :data:`THRESHOLDS` (predicted positive against labelled positive); the average
 precision of the quality ranking (area under the precision-recall curve, the step sum
 ``Σ (R_n − R_{n−1}) P_n`` over the distinct thresholds, as scikit-learn's); the mean
 width error (m) and the mean and median rotation error (degrees, the angle between the
@@ -69,13 +69,13 @@ from heapgrasp.nets.models import GraspNet
 from heapgrasp.nets.training import (
     Panel,
     TrainSetupError,
+    end_run,
+    epoch_bar,
     finish_epoch,
-    load_best,
-    plot_history,
+    finite,
     read_network,
     save_network,
     start_run,
-    write_csv,
 )
 
 __all__ = [
@@ -104,8 +104,9 @@ NETWORK_FORMAT = "heapgrasp-grasp-network"
 _CHECKPOINT_FORMAT = "heapgrasp-grasp-train-checkpoint"
 #: Weight of the width term, the width in voxels (VGN's).
 WIDTH_WEIGHT = 0.01
-#: Quality thresholds ε of the precision and recall metrics.
-THRESHOLDS = (0.5, 0.9)
+#: Quality thresholds ε of the precision and recall metrics: 0.5, the loop's ε for the
+#: network planner (Table I, 0.8) and VGN's grasp detection threshold (0.9).
+THRESHOLDS = (0.5, 0.8, 0.9)
 #: Entries of :func:`grasp_metrics` that count rather than measure.
 _COUNTS = ("grasps", "positives")
 
@@ -444,12 +445,15 @@ _PANELS: list[Panel] = [
         [("val_quality", "quality BCE"), ("val_rotation", "rotation"), ("val_width", "width")],
     ),
     (
-        "quality (validation)",
+        "quality: precision (validation)",
         [
             ("val_average_precision", "average precision"),
-            *((f"val_precision_{e:g}", f"precision ε={e:g}") for e in THRESHOLDS),
-            *((f"val_recall_{e:g}", f"recall ε={e:g}") for e in THRESHOLDS),
+            *((f"val_precision_{e:g}", f"ε = {e:g}") for e in THRESHOLDS),
         ],
+    ),
+    (
+        "quality: recall (validation)",
+        [(f"val_recall_{e:g}", f"ε = {e:g}") for e in THRESHOLDS],
     ),
     ("rotation error on positives (°)", [("val_rotation_error_deg", "mean")]),
     ("width error on positives (m)", [("val_width_error_m", "mean")]),
@@ -558,20 +562,12 @@ def train(
     )
     n = len(train_data)
     steps = -(-n // config.batch_size)
-    from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
-
     for epoch in range(int(state["epoch"]), config.epochs):
         started = time.perf_counter()
         net.train()
         sums = {"loss": 0.0, "quality": 0.0, "rotation": 0.0, "width": 0.0}
         counted = {"loss": 0, "rotation": 0}
-        bar = tqdm(
-            total=steps,
-            desc=f"epoch {epoch + 1}/{config.epochs}",
-            unit="batch",
-            disable=None if progress else True,
-            leave=False,
-        )
+        bar = epoch_bar(epoch, config.epochs, steps, progress)
         with bar:
             for idx, augments in _epoch_plan(config, epoch, n):
                 batch = make_batch(train_data, idx, augments)
@@ -627,16 +623,8 @@ def train(
                 f"{row['val_rotation_error_deg']:.1f}°, width error "
                 f"{1000 * row['val_width_error_m']:.1f} mm ({seconds:.1f} s)"
             )
-    if state["history"]:  # again: a run stopped between its checkpoint and these
-        write_csv(out_dir / "metrics.csv", state["history"])
-        plot_history(out_dir / "metrics.png", state["history"], _PANELS)
-    load_best(out_dir, net)
-    return GraspTrainResult(
-        net=net,
-        best_epoch=int(state["best_epoch"]) or int(state["epoch"]),
-        history=list(state["history"]),
-        seconds=float(state["seconds"]),
-    )
+    best_epoch, history, seconds = end_run(out_dir, net, state, _PANELS)
+    return GraspTrainResult(net=net, best_epoch=best_epoch, history=history, seconds=seconds)
 
 
 # --------------------------------------------------------------------------- outputs
@@ -656,17 +644,6 @@ def load_grasp_network(path: str | os.PathLike[str], device: str = "cpu") -> Gra
     net = read_network(path, GraspNet, fmt=NETWORK_FORMAT, what="grasp network")
     assert isinstance(net, GraspNet)
     return net.to(device).eval()
-
-
-def _finite(value: Any) -> Any:
-    """``value`` with NaN and infinities as None (strict JSON)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    return value
 
 
 def _machine(device: str) -> dict[str, Any]:
@@ -709,7 +686,7 @@ def write_outputs(
     }
     if test_data is not None:
         metrics["test"] = evaluate(net, test_data, batch_size=config.batch_size, device=device)
-    metrics = _finite(metrics)
+    metrics = finite(metrics)
     (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2, allow_nan=False) + "\n")
     import heapgrasp
 
@@ -732,7 +709,7 @@ def write_outputs(
         + ", float32 (B, 1, R, R, R) indexed [x, y, z]",
         "output": "quality sigmoid (B, 1, R, R, R); rotation unit quaternion x, y, z, w in "
         "the grid's axes (B, 4, R, R, R); width opening in metres (B, 1, R, R, R)",
-        "geometry": _finite(dict(train_data.geometry)),
+        "geometry": finite(dict(train_data.geometry)),
         "data": data,
         "training": {
             **config.as_dict(),
@@ -755,7 +732,7 @@ def write_outputs(
     onnx_path = export_onnx(
         net,
         out_dir / "grasp_network.onnx",
-        provenance=_finite(card),
+        provenance=finite(card),
         hparams={"input_kind": config.input_kind},
     )
     return [weights, meta, out_dir / "metrics.json", onnx_path]

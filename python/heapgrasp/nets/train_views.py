@@ -44,13 +44,12 @@ from heapgrasp.nets.training import (
     CHECKPOINT,
     Panel,
     TrainSetupError,
+    end_run,
+    epoch_bar,
     finish_epoch,
-    load_best,
-    plot_history,
     read_network,
     save_network,
     start_run,
-    write_csv,
 )
 from heapgrasp.nets.view_data import (
     SYMMETRIES,
@@ -425,19 +424,11 @@ def train(
     n = len(train_data)
     steps = -(-n // config.batch_size)
     total = steps * config.epochs
-    from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
-
     for epoch in range(int(state["epoch"]), config.epochs):
         started = time.perf_counter()
         net.train()
         losses: list[float] = []
-        bar = tqdm(
-            total=steps,
-            desc=f"epoch {epoch + 1}/{config.epochs}",
-            unit="batch",
-            disable=None if progress else True,
-            leave=False,
-        )
+        bar = epoch_bar(epoch, config.epochs, steps, progress)
         with bar:
             for b, (idx, (k, mirror)) in enumerate(_epoch_plan(config, epoch, n)):
                 lr = _lr_at(config, epoch * steps + b, total)
@@ -482,16 +473,9 @@ def train(
                 f"{row['val_spearman_median']:.3f}, val regret {row['val_regret_mean']:.4f} "
                 f"({seconds:.1f} s)"
             )
-    if state["history"]:  # again: a run stopped between its checkpoint and these
-        write_csv(out_dir / "metrics.csv", state["history"])
-        plot_history(out_dir / "metrics.png", state["history"], _panels(state["history"][0]))
-    load_best(out_dir, net)
-    return TrainResult(
-        net=net,
-        best_epoch=int(state["best_epoch"]) or int(state["epoch"]),
-        history=list(state["history"]),
-        seconds=float(state["seconds"]),
-    )
+    panels = _panels(state["history"][0]) if state["history"] else []
+    best_epoch, history, seconds = end_run(out_dir, net, state, panels)
+    return TrainResult(net=net, best_epoch=best_epoch, history=history, seconds=seconds)
 
 
 # --------------------------------------------------------------------------- weights files

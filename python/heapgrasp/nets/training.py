@@ -30,9 +30,11 @@ __all__ = [
     "BEST",
     "CHECKPOINT",
     "TrainSetupError",
+    "end_run",
+    "epoch_bar",
     "finish_epoch",
+    "finite",
     "json_default",
-    "load_best",
     "plot_history",
     "read_network",
     "read_safetensors",
@@ -286,13 +288,49 @@ def finish_epoch(
     plot_history(out_dir / "metrics.png", state["history"], panels)
 
 
-def load_best(out_dir: Path, net: nn.Module) -> None:
-    """Loads ``OUT/best.safetensors`` into ``net`` where there is one; eval mode."""
+def end_run(
+    out_dir: Path, net: nn.Module, state: dict[str, Any], panels: Sequence[Panel]
+) -> tuple[int, list[dict[str, float]], float]:
+    """After the last epoch: ``metrics.csv`` and ``metrics.png`` written again (a run
+    stopped between its checkpoint and them), the best epoch's weights loaded into
+    ``net`` (eval mode). Returns the best epoch (the last one where none was better),
+    the history and the seconds of all epochs."""
+    if state["history"]:
+        write_csv(out_dir / "metrics.csv", state["history"])
+        plot_history(out_dir / "metrics.png", state["history"], panels)
     best = out_dir / BEST
     if best.exists():
         weights, _ = read_safetensors(best, "weights file")
         net.load_state_dict(weights, strict=True)
     net.eval()
+    epoch = int(state["best_epoch"]) or int(state["epoch"])
+    return epoch, list(state["history"]), float(state["seconds"])
+
+
+def epoch_bar(epoch: int, epochs: int, steps: int, progress: bool) -> Any:
+    """A tqdm progress bar over an epoch's ``steps`` batches (shown on a terminal only,
+    never without ``progress``; gone when the epoch ends)."""
+    from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
+
+    return tqdm(
+        total=steps,
+        desc=f"epoch {epoch + 1}/{epochs}",
+        unit="batch",
+        disable=None if progress else True,
+        leave=False,
+    )
+
+
+def finite(value: Any) -> Any:
+    """``value`` with NaN and infinities as None, through dicts, lists and tuples (strict
+    JSON)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [finite(v) for v in value]
+    return value
 
 
 # --------------------------------------------------------------------------- metrics files

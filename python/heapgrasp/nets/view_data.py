@@ -29,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,7 +40,7 @@ import torch
 from torch import Tensor
 
 from heapgrasp.geometry.motion import ViewSphere
-from heapgrasp.nets.datasets import read_manifest, read_shards
+from heapgrasp.nets.datasets import open_shard, read_manifest, read_shards
 
 __all__ = [
     "DATA_FORMAT",
@@ -213,26 +212,10 @@ def _load_shard(file: Path, expected: int, geo: DataGeometry) -> dict[str, np.nd
         "scene_seed": (),
         "k": (),
     }
-    try:
-        with np.load(file, allow_pickle=False) as data:
-            missing = [k for k in ARRAYS if k not in data.files]
-            if missing:
-                raise ViewDataError(f"{file}: missing array(s) {', '.join(missing)}")
-            n = int(data["k"].shape[0]) if data["k"].ndim == 1 else -1
-            if n != expected:
-                raise ViewDataError(
-                    f"{file}: {n} samples, the manifest says {expected} "
-                    "(a shard rewritten without its manifest?)"
-                )
-            if n == 0:
-                return None
-            out = {name: data[name] for name in ARRAYS}
-    except FileNotFoundError:
-        raise ViewDataError(f"{file}: listed in manifest.json but missing") from None
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        if isinstance(exc, ViewDataError):
-            raise
-        raise ViewDataError(f"{file}: unreadable shard ({exc})") from None
+    out = open_shard(file, list(ARRAYS), expected, what="samples", error=ViewDataError)
+    if out is None:
+        return None
+    n = expected
     for name, dtype in ARRAYS.items():
         a = out[name]
         if a.dtype != dtype or a.shape != (n, *shapes[name]):
