@@ -429,8 +429,6 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
             width=80,
         ),
         epilog=(
-            "DATA: grasp dataset directories, or directories holding them (DATA/train, "
-            "DATA/val, DATA/test).\n"
             "example:\n"
             "  heapgrasp train grasps runs/grasps --out runs/grasp-net --epochs 20\n"
             "  heapgrasp train grasps runs/vgn-grasps --out runs/vgn-net   # tsdf data\n"
@@ -438,7 +436,13 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
             "--resume   # continue after a stop"
         ),
     )
-    g.add_argument("data", nargs="+", metavar="DATA", help="grasp datasets (module help)")
+    g.add_argument(
+        "data",
+        nargs="+",
+        metavar="DATA",
+        help="grasp dataset directories, or directories holding them (DATA/train, "
+        "DATA/val, DATA/test); their manifests give the splits",
+    )
     g.add_argument("--out", required=True, help="output directory")
     g.add_argument(
         "--input",
@@ -495,7 +499,8 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
         "--workers",
         type=int_at_least(1),
         default=None,
-        help="CPU threads of PyTorch and of reading the shards (default: PyTorch's)",
+        help="CPU threads of PyTorch and of reading the shards (default: PyTorch's; 1 "
+        "is faster while other jobs share the CPU)",
     )
     g.add_argument(
         "--no-progress", action="store_true", help="no progress bar (one line per epoch)"
