@@ -16,6 +16,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 import heapgrasp as hg  # noqa: E402
+from heapgrasp.geometry.errors import WeightsError  # noqa: E402
 from heapgrasp.geometry.grid import GridFrame  # noqa: E402
 from heapgrasp.nets import (  # noqa: E402
     Encoder3d,
@@ -474,6 +475,30 @@ def test_resolve_device_names_what_pytorch_sees():
     for bad in ("gpu", "cuda:", "cuda:x", "CPU", 0):
         with pytest.raises(ValueError, match="device must be cpu, cuda, cuda:N or auto"):
             resolve_device(bad)  # type: ignore[arg-type]
+
+
+def test_the_grasp_network_reads_the_grid_it_was_trained_on(onnx_files, tmp_path):
+    from heapgrasp.loop.config import ConfigError, RunConfig
+    from heapgrasp.loop.phase import make_grasp_planner
+    from heapgrasp.nets import export_onnx
+
+    net, occupancy = onnx_files["grasp16"]
+    tsdf = export_onnx(net, tmp_path / "tsdf.onnx", provenance={}, hparams={"input_kind": "tsdf"})
+    assert NetworkGraspPlanner(tsdf).input_kind == "tsdf"
+    base = {"grasp_planner": "network", "resolution": 16}
+    vgn = RunConfig.from_mapping({**base, "method": "vgn", "grasp_weights": str(tsdf)})
+    assert make_grasp_planner(vgn).input_kind == "tsdf"
+    for method, weights, trained, fed in (
+        ("vgn", occupancy, "occupancy", "tsdf"),
+        ("no-vp", tsdf, "tsdf", "occupancy"),
+    ):
+        config = RunConfig.from_mapping({**base, "method": method, "grasp_weights": str(weights)})
+        match = f"{weights} was trained on {trained} grids, but the {method} method feeds it {fed}"
+        with pytest.raises(ConfigError, match=match):
+            make_grasp_planner(config)
+    bad = export_onnx(net, tmp_path / "bad.onnx", provenance={}, hparams={"input_kind": "depth"})
+    with pytest.raises(WeightsError, match="hparams input_kind is 'depth'"):
+        NetworkGraspPlanner(bad)
 
 
 def test_the_config_picks_the_networks_device(onnx_files):

@@ -98,6 +98,13 @@ SHIPPED_FILES: Final[Mapping[str, str]] = {
     "grasp-critic": "critic.onnx",
 }
 
+#: The shipped grasp network of each input kind (``hparams["input_kind"]``): the
+#: silhouette methods' ``Ŝ≥λ`` and the VGN baseline's TSDF.
+SHIPPED_GRASP_NETWORKS: Final[Mapping[str, str]] = {
+    "occupancy": "grasp_network.onnx",
+    "tsdf": "grasp_network_tsdf.onnx",
+}
+
 _DEVICE = re.compile(r"cpu|auto|cuda(?::(\d+))?")
 _CUDA = "CUDAExecutionProvider"
 _CPU = "CPUExecutionProvider"
@@ -126,6 +133,17 @@ def shipped_weights(kind: Kind) -> Path | None:
     """The shipped file of ``kind`` (:data:`SHIPPED_FILES`), or None when none ships."""
     _check_kind(kind)
     p = weights_dir() / SHIPPED_FILES[kind]
+    return p if p.is_file() else None
+
+
+def shipped_grasp_network(input_kind: str) -> Path | None:
+    """The shipped grasp network that reads ``input_kind`` grids
+    (:data:`SHIPPED_GRASP_NETWORKS`), or None when none ships."""
+    if input_kind not in SHIPPED_GRASP_NETWORKS:
+        raise ValueError(
+            f"input_kind must be one of {', '.join(SHIPPED_GRASP_NETWORKS)}; got {input_kind!r}"
+        )
+    p = weights_dir() / SHIPPED_GRASP_NETWORKS[input_kind]
     return p if p.is_file() else None
 
 

@@ -53,7 +53,7 @@ from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
 from heapgrasp.geometry.motion import MotionLimits, ViewSphere, plan_waypoints, time_path
-from heapgrasp.inference import Kind, resolve_device, shipped_weights
+from heapgrasp.inference import Kind, resolve_device, shipped_grasp_network, shipped_weights
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.observe import PhaseObserver
 from heapgrasp.loop.policies import EarlyStop, RimSweep
@@ -606,12 +606,26 @@ def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND)
         return AntipodalPlanner(max_opening=gripper.max_opening, gripper=gripper)
     from heapgrasp.planning.grasp_network import NetworkGraspPlanner
 
-    weights = _weights(config.grasp_weights, "grasp-network", "grasp_weights")
+    grid = "tsdf" if config.method == "vgn" else "occupancy"
+    if config.grasp_weights:
+        weights = _weights(config.grasp_weights, "grasp-network", "grasp_weights")
+    else:
+        shipped = shipped_grasp_network(grid)
+        if shipped is None:
+            raise ConfigError(
+                f"grasp_weights: no grasp network for {grid} grids ships with this version; "
+                f"pass one (heapgrasp train grasps --input {grid} writes it) or use "
+                f"grasp_planner = 'antipodal'"
+            )
+        weights = shipped
     planner = _open_network(
         config, "grasp_weights", weights, lambda w, d: NetworkGraspPlanner(w, device=d)
     )
-    if config.method == "vgn":
-        planner.input_kind = "tsdf"
+    if planner.input_kind != grid:
+        raise ConfigError(
+            f"grasp_weights: {weights} was trained on {planner.input_kind} grids, but the "
+            f"{config.method} method feeds it {grid} grids"
+        )
     return planner
 
 

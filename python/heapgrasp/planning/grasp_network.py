@@ -19,7 +19,10 @@ from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.inference import OnnxNetwork
 from heapgrasp.planning.volumes import GraspVolumes
 
-__all__ = ["NetworkGraspPlanner", "validate_grid"]
+__all__ = ["INPUT_KINDS", "NetworkGraspPlanner", "validate_grid"]
+
+INPUT_KINDS = ("occupancy", "tsdf")
+"""The grids a grasp network reads."""
 
 F32 = npt.NDArray[np.float32]
 
@@ -73,8 +76,15 @@ class NetworkGraspPlanner:
                 f"the grasp network reads {self.network.input.shape[1]} channels; "
                 f"heapgrasp feeds 1 (the grid)",
             )
-        self.input_kind: str = "occupancy"
-        """``"occupancy"`` (``Ŝ≥λ``, HEAPGrasp) or ``"tsdf"`` (the VGN baseline)."""
+        kind = self.network.hparams.get("input_kind", "occupancy")
+        if kind not in INPUT_KINDS:
+            raise WeightsError(
+                self.network.path,
+                f"hparams input_kind is {kind!r}, not one of {', '.join(INPUT_KINDS)}",
+            )
+        self.input_kind: str = kind
+        """The grid the network was trained on (its file's ``input_kind``): ``"occupancy"``
+        (``Ŝ≥λ``, HEAPGrasp and no-vp) or ``"tsdf"`` (the VGN baseline)."""
 
     @property
     def device(self) -> str:
