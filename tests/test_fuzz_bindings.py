@@ -1482,6 +1482,152 @@ def test_keep_silhouettes(data):
     np.testing.assert_array_equal(out, clean)
 
 
+# ---------------------------------------------------------------------- GraspLabeller
+PANDA_FIELDS = {
+    "finger_width": 0.021,
+    "finger_tip": 0.0072,
+    "finger_base": -0.0466,
+    "finger_split": -0.02,
+    "tip_thickness": 0.016,
+    "base_thickness": 0.026,
+    "palm_front": -0.039,
+    "palm_split": -0.075,
+    "palm_back": -0.131,
+    "palm_front_half": (0.022, 0.101),
+    "palm_back_half": (0.032, 0.104),
+    "max_opening": 0.08,
+}
+LABELLER_KW = {
+    "table_z": 0.0,
+    "friction": 1.0,
+    "pregrasp_distance": 0.05,
+    "hand_margin": 0.001,
+    "object_margin": 0.001,
+    "min_width": 0.004,
+}
+
+
+def corners(lo: Sequence[float], hi: Sequence[float]) -> np.ndarray:
+    return np.array(
+        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    )
+
+
+def hand_parts() -> dict[str, Any]:
+    """The Panda's boxes as convex parts (the other form ``hand`` takes)."""
+    return {
+        "palm": [corners((-0.03, -0.1, -0.13), (0.03, 0.1, -0.039))],
+        "left": [corners((-0.01, 0.04, -0.047), (0.01, 0.056, 0.0072))],
+        "right": [corners((-0.01, -0.056, -0.047), (0.01, -0.04, 0.0072))],
+        "max_opening": 0.08,
+        "palm_threshold": 0.0027,
+        "finger_threshold": 0.0012,
+    }
+
+
+@st.composite
+def hand_arg(draw: st.DrawFn, bad: bool) -> Any:
+    hand = dict(PANDA_FIELDS) if draw(st.booleans()) else hand_parts()
+    if not bad:
+        return hand
+    kind = draw(st.sampled_from(["drop", "value", "part", "object"]))
+    key = draw(st.sampled_from(sorted(hand)))
+    if kind == "drop":
+        del hand[key]
+    elif kind == "value" or not isinstance(hand[key], list):
+        hand[key] = draw(float_arg(st.floats(-0.2, 0.2)))
+    elif kind == "part":
+        hand[key] = [draw(maybe_array(hand[key][0]))[0]]
+    else:
+        return draw(st.one_of(OBJECTS, BOOLS, st.just(MappingProxyType(hand))))
+    return hand
+
+
+def check_labels(out: Any, n: int, ids: Sequence[int], opening: float) -> None:
+    ok_, width, obj, reason = out
+    assert ok_.shape == width.shape == obj.shape == reason.shape == (n,)
+    assert (ok_.dtype, width.dtype, obj.dtype, reason.dtype) == (
+        np.bool_,
+        np.float32,
+        np.int32,
+        np.uint8,
+    )
+    assert (reason < len(_core.GraspLabeller.reasons())).all()
+    np.testing.assert_array_equal(ok_, reason == 0)
+    assert (width[~ok_] == np.float32(opening)).all() and (obj[~ok_] == -1).all()
+    assert ((width >= 0) & (width <= np.float32(opening))).all()
+    assert np.isin(obj[ok_], list(ids)).all()
+
+
+@FUZZ
+@given(data=st.data())
+def test_grasp_labeller(data):
+    EXAMPLES_RUN["test_grasp_labeller"] += 1
+    names = ["hand", *LABELLER_KW]
+    plan = Plan(data, names)
+    kw = {
+        k: data.draw(float_arg(st.floats(0.0, 0.01))) if k in plan else v
+        for k, v in LABELLER_KW.items()
+    }
+    hand = data.draw(hand_arg("hand" in plan))
+    labeller = call("GraspLabeller", names, _core.GraspLabeller, hand, **kw)
+    if not ok(labeller):
+        assert plan.bad, "a valid labeller was refused"
+        return
+    ids: list[int] = []
+    for _ in range(data.draw(st.integers(0, 3))):
+        names = ["id", "obj2world", "pieces", "threshold"]
+        plan = Plan(data, names)
+        centre = data.draw(
+            st.tuples(st.floats(-0.05, 0.05), st.floats(-0.05, 0.05), st.floats(0.01, 0.05))
+        )
+        half = data.draw(st.floats(0.005, 0.04))
+        piece = corners([-half] * 3, [half] * 3)
+        pieces: Any = [piece]
+        if "pieces" in plan:
+            pieces = data.draw(
+                st.one_of(
+                    maybe_array(piece).map(lambda x: [x[0]]),
+                    st.just([]),
+                    st.just([np.zeros((5, 3))]),
+                    OBJECTS,
+                    st.just(piece),
+                )
+            )
+        pose, _ = data.draw(pose_arg(centre, 0.3, "obj2world" in plan))
+        if "obj2world" not in plan:
+            pose = ref.pose_from(np.eye(3), np.asarray(centre))
+        oid = (
+            data.draw(int_arg(0, 2**31 - 1))
+            if "id" in plan
+            else min(set(range(1, len(ids) + 2)) - set(ids))
+        )
+        threshold = data.draw(float_arg(st.floats(0.0, 0.003))) if "threshold" in plan else 0.001
+        before = (labeller.object_count, labeller.piece_count)
+        out = call(
+            "GraspLabeller.add_object", names, labeller.add_object, oid, pose, pieces, threshold
+        )
+        if ok(out):
+            ids.append(int(oid))
+        else:
+            assert plan.bad, "a valid object was refused"
+            assert (labeller.object_count, labeller.piece_count) == before
+    names = ["tcp2world", "threads"]
+    plan = Plan(data, names)
+    n = data.draw(st.integers(0, 6))
+    poses, valid = data.draw(poses_arg(n, (0.0, 0.0, 0.05), "tcp2world" in plan))
+    threads = data.draw(int_arg(0, 4096)) if "threads" in plan else None
+    out = call("GraspLabeller.label", names, labeller.label, poses, threads=threads)
+    if ok(out):
+        assert valid
+        check_labels(out, len(poses), ids, float(hand["max_opening"]))
+        again = labeller.label(canonical(poses, np.float64), threads=1)
+        for a, b in zip(out, again, strict=True):
+            np.testing.assert_array_equal(a, b)
+    else:
+        assert plan.bad, "valid grasps were refused"
+
+
 # ----------------------------------------------------------------------- module level
 def test_module_functions():
     assert call("kernel_level", [], _core.kernel_level) in {"avx512", "avx2", "baseline"}
@@ -1504,6 +1650,7 @@ def test_every_entry_point_is_fuzzed():
         "OccupancyGrid",
         "TSDFVolume",
         "MeshScene",
+        "GraspLabeller",
         "score_views",
         "gaussian_filter3d",
         "maximum_filter3d",
