@@ -39,12 +39,9 @@ validation and test metrics.
 from __future__ import annotations
 
 import dataclasses
-import datetime as _dt
-import json
 import math
 import os
 import platform
-import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,14 +65,21 @@ from heapgrasp.nets.grasp_data import (
 from heapgrasp.nets.models import GraspNet
 from heapgrasp.nets.training import (
     Panel,
+    RunResult,
     TrainSetupError,
-    end_run,
-    epoch_bar,
-    finish_epoch,
+    card_header,
+    check_lr,
+    check_train_split,
+    data_sources,
+    evaluating,
     finite,
     read_network,
+    require_int,
+    run_epochs,
+    run_identity,
     save_network,
     start_run,
+    write_metrics,
 )
 
 __all__ = [
@@ -254,21 +258,16 @@ def predict(
     """The network at every labelled grasp of ``data`` (no augmentation, eval mode, no
     gradients; the network's mode is restored)."""
     dev = torch.device(device) if device is not None else next(net.parameters()).device
-    was_training = net.training
-    net.eval()
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("q", "r", "w")}
     labels: list[GraspBatch] = []
-    try:
-        with torch.inference_mode():
-            for start in range(0, len(data), batch_size):
-                batch = make_batch(data, np.arange(start, min(start + batch_size, len(data))))
-                quality, rotation, width = net(torch.from_numpy(batch.grids).to(dev))
-                parts["q"].append(_gather(quality, batch, dev)[:, 0].float().cpu().numpy())
-                parts["r"].append(_gather(rotation, batch, dev).float().cpu().numpy())
-                parts["w"].append(_gather(width, batch, dev)[:, 0].float().cpu().numpy())
-                labels.append(batch)
-    finally:
-        net.train(was_training)
+    with evaluating(net):
+        for start in range(0, len(data), batch_size):
+            batch = make_batch(data, np.arange(start, min(start + batch_size, len(data))))
+            quality, rotation, width = net(torch.from_numpy(batch.grids).to(dev))
+            parts["q"].append(_gather(quality, batch, dev)[:, 0].float().cpu().numpy())
+            parts["r"].append(_gather(rotation, batch, dev).float().cpu().numpy())
+            parts["w"].append(_gather(width, batch, dev)[:, 0].float().cpu().numpy())
+            labels.append(batch)
 
     def cat(arrays: Sequence[np.ndarray]) -> F64:
         return np.concatenate(arrays).astype(np.float64)
@@ -358,14 +357,10 @@ class GraspTrainConfig:
     """Largest shift (voxels) along x and y."""
 
     def __post_init__(self) -> None:
-        for name in ("epochs", "batch_size"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        if not (isinstance(self.lr, float | int) and math.isfinite(self.lr) and self.lr > 0):
-            raise ValueError(f"lr must be > 0, got {self.lr!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        require_int("epochs", self.epochs, 1)
+        require_int("batch_size", self.batch_size, 1)
+        check_lr(self.lr)
+        require_int("seed", self.seed, 0)
         if self.input_kind not in INPUT_KINDS:
             raise ValueError(
                 f"input_kind must be one of {', '.join(INPUT_KINDS)}, got {self.input_kind!r}"
@@ -380,9 +375,7 @@ class GraspTrainConfig:
         hk = self.head_kernel
         if isinstance(hk, bool) or not isinstance(hk, int) or hk < 1 or hk % 2 == 0:
             raise ValueError(f"head_kernel must be an odd integer >= 1, got {hk!r}")
-        ms = self.max_shift
-        if isinstance(ms, bool) or not isinstance(ms, int) or ms < 0:
-            raise ValueError(f"max_shift must be an integer >= 0, got {ms!r}")
+        require_int("max_shift", self.max_shift, 0)
 
     def as_dict(self) -> dict[str, Any]:
         """Plain types."""
@@ -401,18 +394,9 @@ class GraspTrainConfig:
         )
 
 
-@dataclass
-class GraspTrainResult:
-    """What :func:`train` returns."""
-
-    net: GraspNet
-    """The network with the best epoch's weights (lowest validation loss)."""
-    best_epoch: int
-    """1-based epoch of those weights."""
-    history: list[dict[str, float]]
-    """One row per epoch (as ``metrics.csv``)."""
-    seconds: float
-    """Training and validation time over every epoch, resumed runs included."""
+class GraspTrainResult(RunResult[GraspNet]):
+    """What :func:`train` returns: ``net`` has the best epoch's weights (lowest
+    validation loss)."""
 
 
 def _epoch_plan(
@@ -425,16 +409,6 @@ def _epoch_plan(
     for i in range(0, n, config.batch_size):
         idx = order[i : i + config.batch_size]
         yield idx, (draw_augments(rng, len(idx), config.max_shift) if config.augment else None)
-
-
-def _identity(config: GraspTrainConfig, train: GraspDataset, val: GraspDataset) -> dict[str, Any]:
-    """What must match for a checkpoint to be resumed."""
-    return {
-        "config": config.as_dict(),
-        "train": [s.as_dict() for s in train.sources],
-        "val": [s.as_dict() for s in val.sources],
-        "geometry": dict(train.geometry),
-    }
 
 
 _PANELS: list[Panel] = [
@@ -468,12 +442,7 @@ def check_datasets(
     """TrainSetupError unless ``train_data`` is a ``train`` dataset, ``val_data`` a
     ``val`` one and ``test_data`` (where given) a ``test`` one, all of the same grid kind
     and geometry, the held-out ones with no object of the training data."""
-    if train_data.split != "train":
-        raise TrainSetupError(
-            f"{', '.join(s.path for s in train_data.sources)}: a {train_data.split!r} "
-            "dataset cannot be trained on; training takes 'train' datasets (val: "
-            "held-out train objects for validation; test: the benchmark's objects)"
-        )
+    check_train_split(train_data)
     for data, split in ((val_data, "val"), (test_data, "test")):
         if data is None:
             continue
@@ -555,7 +524,7 @@ def train(
         out_dir,
         net,
         opt,
-        _identity(config, train_data, val_data),
+        run_identity(config.as_dict(), train_data, val_data, dict(train_data.geometry)),
         resume=resume,
         fmt=_CHECKPOINT_FORMAT,
         what="grasp network",
@@ -564,68 +533,65 @@ def train(
     )
     n = len(train_data)
     steps = -(-n // config.batch_size)
-    for epoch in range(int(state["epoch"]), config.epochs):
-        started = time.perf_counter()
-        net.train()
+
+    def train_epoch(epoch: int, bar: Any) -> dict[str, float]:
         sums = {"loss": 0.0, "quality": 0.0, "rotation": 0.0, "width": 0.0}
         counted = {"loss": 0, "rotation": 0}
-        bar = epoch_bar(epoch, config.epochs, steps, progress)
-        with bar:
-            for idx, augments in _epoch_plan(config, epoch, n):
-                batch = make_batch(train_data, idx, augments)
-                if not len(batch):  # every grasp shifted out of the grid
-                    bar.update()
-                    continue
-                terms = _batch_losses(net, batch, dev)
-                opt.zero_grad(set_to_none=True)
-                terms["loss"].backward()  # type: ignore[no-untyped-call]
-                opt.step()
-                g, p = len(batch), int(batch.label.sum())
-                sums["loss"] += float(terms["loss"].detach()) * g
-                sums["quality"] += float(terms["quality"].detach()) * g
-                if p:
-                    sums["rotation"] += float(terms["rotation"].detach()) * p
-                    sums["width"] += float(terms["width"].detach()) * p
-                counted["loss"] += g
-                counted["rotation"] += p
+        for idx, augments in _epoch_plan(config, epoch, n):
+            batch = make_batch(train_data, idx, augments)
+            if not len(batch):  # every grasp shifted out of the grid
                 bar.update()
-                bar.set_postfix(loss=f"{sums['loss'] / max(counted['loss'], 1):.4f}")
-        metrics = evaluate(net, val_data, batch_size=config.batch_size, device=dev)
-        seconds = time.perf_counter() - started
+                continue
+            terms = _batch_losses(net, batch, dev)
+            opt.zero_grad(set_to_none=True)
+            terms["loss"].backward()  # type: ignore[no-untyped-call]
+            opt.step()
+            g, p = len(batch), int(batch.label.sum())
+            sums["loss"] += float(terms["loss"].detach()) * g
+            sums["quality"] += float(terms["quality"].detach()) * g
+            if p:
+                sums["rotation"] += float(terms["rotation"].detach()) * p
+                sums["width"] += float(terms["width"].detach()) * p
+            counted["loss"] += g
+            counted["rotation"] += p
+            bar.update()
+            bar.set_postfix(loss=f"{sums['loss'] / max(counted['loss'], 1):.4f}")
         g, p = max(counted["loss"], 1), counted["rotation"]
-        row: dict[str, float] = {
-            "epoch": float(epoch + 1),
+        return {
             "train_loss": sums["loss"] / g,
             "train_quality": sums["quality"] / g,
             "train_rotation": sums["rotation"] / p if p else math.nan,
             "train_width": sums["width"] / p if p else math.nan,
-            **{
-                f"val_{k}": float(v) for k, v in metrics.items() if k not in ("grasps", "positives")
-            },
-            "seconds": round(seconds, 3),
         }
-        finish_epoch(
-            out_dir,
-            net,
-            opt,
-            state,
-            row,
-            value=row["val_loss"],
-            higher_is_better=False,
-            fmt=_CHECKPOINT_FORMAT,
-            network_format=NETWORK_FORMAT,
-            panels=_PANELS,
+
+    def summary(row: Mapping[str, float]) -> str:
+        return (
+            f"train loss {row['train_loss']:.4f}, val loss {row['val_loss']:.4f}, val AP "
+            f"{row['val_average_precision']:.3f}, precision/recall@0.5 "
+            f"{row['val_precision_0.5']:.3f}/{row['val_recall_0.5']:.3f}, rotation error "
+            f"{row['val_rotation_error_deg']:.1f}°, width error "
+            f"{1000 * row['val_width_error_m']:.1f} mm"
         )
-        if log:
-            log(
-                f"epoch {epoch + 1}/{config.epochs}: train loss {row['train_loss']:.4f}, "
-                f"val loss {row['val_loss']:.4f}, val AP {row['val_average_precision']:.3f}, "
-                f"precision/recall@0.5 {row['val_precision_0.5']:.3f}/"
-                f"{row['val_recall_0.5']:.3f}, rotation error "
-                f"{row['val_rotation_error_deg']:.1f}°, width error "
-                f"{1000 * row['val_width_error_m']:.1f} mm ({seconds:.1f} s)"
-            )
-    best_epoch, history, seconds = end_run(out_dir, net, state, _PANELS)
+
+    best_epoch, history, seconds = run_epochs(
+        out_dir,
+        net,
+        opt,
+        state,
+        epochs=config.epochs,
+        steps=steps,
+        progress=progress,
+        train_epoch=train_epoch,
+        validate=lambda: evaluate(net, val_data, batch_size=config.batch_size, device=dev),
+        uncounted=_COUNTS,
+        select="val_loss",
+        higher_is_better=False,
+        fmt=_CHECKPOINT_FORMAT,
+        network_format=NETWORK_FORMAT,
+        panels=lambda row: _PANELS,
+        summary=summary,
+        log=log,
+    )
     return GraspTrainResult(net=net, best_epoch=best_epoch, history=history, seconds=seconds)
 
 
@@ -688,19 +654,9 @@ def write_outputs(
     }
     if test_data is not None:
         metrics["test"] = evaluate(net, test_data, batch_size=config.batch_size, device=device)
-    metrics = finite(metrics)
-    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2, allow_nan=False) + "\n")
-    import heapgrasp
-
-    data = {
-        "train": [s.as_dict() for s in train_data.sources],
-        "val": [s.as_dict() for s in val_data.sources],
-        "test": [s.as_dict() for s in test_data.sources] if test_data is not None else [],
-    }
+    metrics = write_metrics(out_dir, metrics)
     card = {
-        "command": command,
-        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
-        "package_version": heapgrasp.__version__,
+        **card_header(command),
         "machine": _machine(device),
         "input_kind": config.input_kind,
         "input": (
@@ -712,7 +668,7 @@ def write_outputs(
         "output": "quality sigmoid (B, 1, R, R, R); rotation unit quaternion x, y, z, w in "
         "the grid's axes (B, 4, R, R, R); width opening in metres (B, 1, R, R, R)",
         "geometry": finite(dict(train_data.geometry)),
-        "data": data,
+        "data": data_sources(train_data, val_data, test_data),
         "training": {
             **config.as_dict(),
             "device": device,

@@ -27,7 +27,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,11 +42,15 @@ from heapgrasp.nets.models import ViewNet
 from heapgrasp.nets.training import (
     CHECKPOINT,
     Panel,
+    RunResult,
     TrainSetupError,
-    end_run,
-    epoch_bar,
-    finish_epoch,
+    check_lr,
+    check_train_split,
+    evaluating,
     read_network,
+    require_int,
+    run_epochs,
+    run_identity,
     save_network,
     start_run,
 )
@@ -180,17 +183,12 @@ def predict(
     """The network's ``(N, U, V)`` scores for every sample (eval mode, no gradients;
     the network's mode is restored)."""
     dev = torch.device(device) if device is not None else next(net.parameters()).device
-    was_training = net.training
-    net.eval()
     out = np.empty((len(data), *net.view_shape), dtype=np.float32)
-    try:
-        with torch.inference_mode():
-            for start in range(0, len(data), batch_size):
-                idx = np.arange(start, min(start + batch_size, len(data)))
-                x = torch.from_numpy(batch_inputs(data, idx, net.in_channels)).to(dev)
-                out[idx] = net(x).float().cpu().numpy()
-    finally:
-        net.train(was_training)
+    with evaluating(net):
+        for start in range(0, len(data), batch_size):
+            idx = np.arange(start, min(start + batch_size, len(data)))
+            x = torch.from_numpy(batch_inputs(data, idx, net.in_channels)).to(dev)
+            out[idx] = net(x).float().cpu().numpy()
     return out
 
 
@@ -238,36 +236,23 @@ class TrainConfig:
     """Draw one of the 8 :data:`SYMMETRIES` per batch."""
 
     def __post_init__(self) -> None:
-        for name in ("epochs", "batch_size"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        if not (isinstance(self.lr, float | int) and math.isfinite(self.lr) and self.lr > 0):
-            raise ValueError(f"lr must be > 0, got {self.lr!r}")
+        require_int("epochs", self.epochs, 1)
+        require_int("batch_size", self.batch_size, 1)
+        check_lr(self.lr)
         if self.loss not in LOSSES:
             raise ValueError(f"loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
         if self.in_channels not in (1, 2, 3):
             raise ValueError(f"in_channels must be 1, 2 or 3, got {self.in_channels!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        require_int("seed", self.seed, 0)
 
     def as_dict(self) -> dict[str, Any]:
         """Plain types."""
         return dataclasses.asdict(self)
 
 
-@dataclass
-class TrainResult:
-    """What :func:`train` returns."""
-
-    net: ViewNet
-    """The network with the best epoch's weights (by validation median Spearman ρ)."""
-    best_epoch: int
-    """1-based epoch of those weights."""
-    history: list[dict[str, float]]
-    """One row per epoch (as ``metrics.csv``)."""
-    seconds: float
-    """Training and validation time over every epoch, resumed runs included."""
+class TrainResult(RunResult[ViewNet]):
+    """What :func:`train` returns: ``net`` has the best epoch's weights by validation
+    median Spearman ρ."""
 
 
 def _lr_at(config: TrainConfig, step: int, total: int) -> float:
@@ -285,16 +270,6 @@ def _epoch_plan(
     drawn = rng.integers(0, len(SYMMETRIES), len(batches))
     for idx, g in zip(batches, drawn, strict=True):
         yield idx, (SYMMETRIES[int(g)] if config.augment else (0, False))
-
-
-def _identity(config: TrainConfig, train: ViewDataset, val: ViewDataset) -> dict[str, Any]:
-    """What must match for a checkpoint to be resumed."""
-    return {
-        "config": config.as_dict(),
-        "train": [s.as_dict() for s in train.sources],
-        "val": [s.as_dict() for s in val.sources],
-        "geometry": dataclasses.asdict(train.geometry),
-    }
 
 
 def _panels(row: Mapping[str, float]) -> list[Panel]:
@@ -354,12 +329,7 @@ def train(
     log : callable or None
         Receives one line per epoch.
     """
-    if train_data.split != "train":
-        raise TrainSetupError(
-            f"{', '.join(s.path for s in train_data.sources)}: a {train_data.split!r} "
-            "dataset cannot be trained on; training takes 'train' datasets (val: "
-            "held-out train objects for validation; test: the benchmark's objects)"
-        )
+    check_train_split(train_data)
     if val_data.split != "val":
         raise TrainSetupError(
             f"{', '.join(s.path for s in val_data.sources)}: validation needs a 'val' "
@@ -409,7 +379,9 @@ def train(
         out_dir,
         net,
         opt,
-        _identity(config, train_data, val_data),
+        run_identity(
+            config.as_dict(), train_data, val_data, dataclasses.asdict(train_data.geometry)
+        ),
         resume=resume,
         fmt=_CHECKPOINT_FORMAT,
         what="view network",
@@ -424,57 +396,55 @@ def train(
     n = len(train_data)
     steps = -(-n // config.batch_size)
     total = steps * config.epochs
-    for epoch in range(int(state["epoch"]), config.epochs):
-        started = time.perf_counter()
-        net.train()
+
+    def train_epoch(epoch: int, bar: Any) -> dict[str, float]:
         losses: list[float] = []
-        bar = epoch_bar(epoch, config.epochs, steps, progress)
-        with bar:
-            for b, (idx, (k, mirror)) in enumerate(_epoch_plan(config, epoch, n)):
-                lr = _lr_at(config, epoch * steps + b, total)
-                for group in opt.param_groups:
-                    group["lr"] = lr
-                x = torch.from_numpy(batch_inputs(train_data, idx, config.in_channels))
-                y = torch.from_numpy(train_data.scores[idx])
-                x = transform_grid(x, k, mirror).to(device)
-                y = transform_scores(y, k, mirror).to(device)
-                loss = loss_fn(net(x), y, config.loss)
-                opt.zero_grad(set_to_none=True)
-                loss.backward()  # type: ignore[no-untyped-call]
-                opt.step()
-                losses.append(float(loss.detach()))
-                bar.update()
-                bar.set_postfix(loss=f"{np.mean(losses):.4f}")
-        metrics = run_eval(net, val_data)
-        seconds = time.perf_counter() - started
-        row: dict[str, float] = {
-            "epoch": float(epoch + 1),
+        for b, (idx, (k, mirror)) in enumerate(_epoch_plan(config, epoch, n)):
+            lr = _lr_at(config, epoch * steps + b, total)
+            for group in opt.param_groups:
+                group["lr"] = lr
+            x = torch.from_numpy(batch_inputs(train_data, idx, config.in_channels))
+            y = torch.from_numpy(train_data.scores[idx])
+            x = transform_grid(x, k, mirror).to(device)
+            y = transform_scores(y, k, mirror).to(device)
+            loss = loss_fn(net(x), y, config.loss)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()  # type: ignore[no-untyped-call]
+            opt.step()
+            losses.append(float(loss.detach()))
+            bar.update()
+            bar.set_postfix(loss=f"{np.mean(losses):.4f}")
+        return {
             "lr_end": float(opt.param_groups[0]["lr"]),
             "train_loss": float(np.mean(losses)),
-            **{f"val_{k}": float(v) for k, v in metrics.items() if k != "samples"},
-            "seconds": round(seconds, 3),
         }
-        finish_epoch(
-            out_dir,
-            net,
-            opt,
-            state,
-            row,
-            value=row["val_spearman_median"],
-            higher_is_better=True,
-            fmt=_CHECKPOINT_FORMAT,
-            network_format=NETWORK_FORMAT,
-            panels=_panels(row),
+
+    def summary(row: Mapping[str, float]) -> str:
+        return (
+            f"train loss {row['train_loss']:.4f}, val loss {row['val_loss']:.4f}, val "
+            f"Spearman median {row['val_spearman_median']:.3f}, val regret "
+            f"{row['val_regret_mean']:.4f}"
         )
-        if log:
-            log(
-                f"epoch {epoch + 1}/{config.epochs}: train loss {row['train_loss']:.4f}, "
-                f"val loss {row['val_loss']:.4f}, val Spearman median "
-                f"{row['val_spearman_median']:.3f}, val regret {row['val_regret_mean']:.4f} "
-                f"({seconds:.1f} s)"
-            )
-    panels = _panels(state["history"][0]) if state["history"] else []
-    best_epoch, history, seconds = end_run(out_dir, net, state, panels)
+
+    best_epoch, history, seconds = run_epochs(
+        out_dir,
+        net,
+        opt,
+        state,
+        epochs=config.epochs,
+        steps=steps,
+        progress=progress,
+        train_epoch=train_epoch,
+        validate=lambda: run_eval(net, val_data),
+        uncounted=("samples",),
+        select="val_spearman_median",
+        higher_is_better=True,
+        fmt=_CHECKPOINT_FORMAT,
+        network_format=NETWORK_FORMAT,
+        panels=_panels,
+        summary=summary,
+        log=log,
+    )
     return TrainResult(net=net, best_epoch=best_epoch, history=history, seconds=seconds)
 
 

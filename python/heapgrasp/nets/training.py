@@ -15,12 +15,16 @@ epoch)``, so a resumed run ends with the weights of an uninterrupted one, bit fo
 from __future__ import annotations
 
 import csv
+import datetime as _dt
 import json
 import math
 import os
-from collections.abc import Callable, Mapping, Sequence
+import time
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 import torch
@@ -29,19 +33,29 @@ from torch import Tensor, nn
 __all__ = [
     "BEST",
     "CHECKPOINT",
+    "RunResult",
     "TrainSetupError",
+    "card_header",
+    "check_lr",
+    "check_train_split",
+    "data_sources",
     "end_run",
     "epoch_bar",
+    "evaluating",
     "finish_epoch",
     "finite",
     "json_default",
     "plot_history",
     "read_network",
     "read_safetensors",
+    "require_int",
+    "run_epochs",
+    "run_identity",
     "save_atomic",
     "save_network",
     "start_run",
     "write_csv",
+    "write_metrics",
 ]
 
 #: Checkpoint file name inside the output directory.
@@ -52,14 +66,82 @@ BEST = "best.safetensors"
 Panel = tuple[str, Sequence[tuple[str, str]]]
 
 
+NetT = TypeVar("NetT", bound=nn.Module)
+
+
 class TrainSetupError(ValueError):
     """Training cannot start as asked (wrong split, clashing settings on resume, ...)."""
+
+
+@dataclass
+class RunResult(Generic[NetT]):
+    """What a trainer's ``train`` returns."""
+
+    net: NetT
+    """The network with the best epoch's weights (the trainer's selection metric)."""
+    best_epoch: int
+    """1-based epoch of those weights."""
+    history: list[dict[str, float]]
+    """One row per epoch (as ``metrics.csv``)."""
+    seconds: float
+    """Training and validation time over every epoch, resumed runs included."""
 
 
 def _hparams(net: nn.Module) -> dict[str, Any]:
     """The network's constructor arguments (its ``hparams()``; {} where it has none)."""
     hparams = getattr(net, "hparams", None)
     return dict(hparams()) if callable(hparams) else {}
+
+
+# --------------------------------------------------------------------------- settings and data
+
+
+def require_int(name: str, value: object, minimum: int) -> None:
+    """ValueError unless ``value`` is an integer (not a bool) ``>= minimum``."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+def check_lr(lr: object) -> None:
+    """ValueError unless the learning rate ``lr`` is a finite number > 0."""
+    if not (isinstance(lr, float | int) and math.isfinite(lr) and lr > 0):
+        raise ValueError(f"lr must be > 0, got {lr!r}")
+
+
+def check_train_split(data: Any) -> None:
+    """TrainSetupError unless ``data`` (a dataset with ``split`` and ``sources``) is a
+    ``train`` dataset: held-out data is never trained on."""
+    if data.split != "train":
+        raise TrainSetupError(
+            f"{', '.join(s.path for s in data.sources)}: a {data.split!r} "
+            "dataset cannot be trained on; training takes 'train' datasets (val: "
+            "held-out train objects for validation; test: the benchmark's objects)"
+        )
+
+
+def run_identity(
+    config: Mapping[str, Any], train: Any, val: Any, geometry: Mapping[str, Any]
+) -> dict[str, Any]:
+    """What must match for a checkpoint to be resumed: the settings, the training and
+    validation datasets' sources and the data's geometry."""
+    return {
+        "config": config,
+        "train": [s.as_dict() for s in train.sources],
+        "val": [s.as_dict() for s in val.sources],
+        "geometry": geometry,
+    }
+
+
+@contextmanager
+def evaluating(net: nn.Module) -> Iterator[None]:
+    """``net`` in eval mode without gradients for the block; its mode restored after."""
+    was_training = net.training
+    net.eval()
+    try:
+        with torch.inference_mode():
+            yield
+    finally:
+        net.train(was_training)
 
 
 # --------------------------------------------------------------------------- files
@@ -307,6 +389,68 @@ def end_run(
     return epoch, list(state["history"]), float(state["seconds"])
 
 
+def run_epochs(
+    out_dir: Path,
+    net: nn.Module,
+    opt: torch.optim.Optimizer,
+    state: dict[str, Any],
+    *,
+    epochs: int,
+    steps: int,
+    progress: bool,
+    train_epoch: Callable[[int, Any], dict[str, float]],
+    validate: Callable[[], Mapping[str, float]],
+    uncounted: Collection[str],
+    select: str,
+    higher_is_better: bool,
+    fmt: str,
+    network_format: str,
+    panels: Callable[[Mapping[str, float]], Sequence[Panel]],
+    summary: Callable[[Mapping[str, float]], str],
+    log: Callable[[str], None] | None,
+) -> tuple[int, list[dict[str, float]], float]:
+    """The epochs of a run from ``state`` (:func:`start_run`) to ``epochs``, then
+    :func:`end_run`'s result.
+
+    Each epoch: ``train_epoch(epoch, bar)`` (the network in training mode, ``bar`` its
+    :func:`epoch_bar` of ``steps`` batches) returns the epoch's training columns;
+    ``validate()`` the validation metrics (recorded as ``val_<name>``, but those named in
+    ``uncounted``). The row ``epoch, <training>, val_*, seconds`` goes to
+    :func:`finish_epoch` with the row's ``select`` entry as the selection metric and the
+    plot's ``panels(row)``; ``log`` receives ``epoch E/N: <summary(row)> (S s)``.
+    """
+    for epoch in range(int(state["epoch"]), epochs):
+        started = time.perf_counter()
+        net.train()
+        bar = epoch_bar(epoch, epochs, steps, progress)
+        with bar:
+            columns = train_epoch(epoch, bar)
+        metrics = validate()
+        seconds = time.perf_counter() - started
+        row: dict[str, float] = {
+            "epoch": float(epoch + 1),
+            **columns,
+            **{f"val_{k}": float(v) for k, v in metrics.items() if k not in uncounted},
+            "seconds": round(seconds, 3),
+        }
+        finish_epoch(
+            out_dir,
+            net,
+            opt,
+            state,
+            row,
+            value=row[select],
+            higher_is_better=higher_is_better,
+            fmt=fmt,
+            network_format=network_format,
+            panels=panels(row),
+        )
+        if log:
+            log(f"epoch {epoch + 1}/{epochs}: {summary(row)} ({seconds:.1f} s)")
+    last = panels(state["history"][0]) if state["history"] else []
+    return end_run(out_dir, net, state, last)
+
+
 def epoch_bar(epoch: int, epochs: int, steps: int, progress: bool) -> Any:
     """A tqdm progress bar over an epoch's ``steps`` batches (shown on a terminal only,
     never without ``progress``; gone when the epoch ends)."""
@@ -331,6 +475,38 @@ def finite(value: Any) -> Any:
     if isinstance(value, list | tuple):
         return [finite(v) for v in value]
     return value
+
+
+# --------------------------------------------------------------------------- outputs
+
+
+def write_metrics(out_dir: Path, metrics: Mapping[str, Any]) -> dict[str, Any]:
+    """``metrics`` with NaN and infinities as None (:func:`finite`), written as
+    ``OUT/metrics.json`` (strict JSON). Returns what was written."""
+    clean = finite(dict(metrics))
+    (out_dir / "metrics.json").write_text(json.dumps(clean, indent=2, allow_nan=False) + "\n")
+    return dict(clean)
+
+
+def data_sources(train: Any, val: Any, test: Any | None) -> dict[str, list[Any]]:
+    """The model card's ``data``: each split's dataset sources (``test`` may be None)."""
+    return {
+        "train": [s.as_dict() for s in train.sources],
+        "val": [s.as_dict() for s in val.sources],
+        "test": [s.as_dict() for s in test.sources] if test is not None else [],
+    }
+
+
+def card_header(command: str) -> dict[str, Any]:
+    """The first entries of a trained network's model card: the command that trained
+    it, when (UTC) and heapgrasp's version."""
+    import heapgrasp
+
+    return {
+        "command": command,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
+        "package_version": heapgrasp.__version__,
+    }
 
 
 # --------------------------------------------------------------------------- metrics files
