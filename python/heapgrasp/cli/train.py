@@ -28,7 +28,6 @@ Needs ``pip install 'heapgrasp[train]'``. Bad input exits 2 with a message namin
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import importlib
 import json
 import os
@@ -63,11 +62,24 @@ def _require_training(command: str) -> None:
         ) from None
 
 
+def _threads(args: argparse.Namespace) -> int:
+    """``--workers`` as PyTorch's thread count (where given); the shard readers' count."""
+    import torch
+
+    if args.workers is not None:
+        torch.set_num_threads(args.workers)
+    return int(args.workers or 1)
+
+
+def _command(args: argparse.Namespace) -> str:
+    """The command line that trained the network, for its model card."""
+    return "heapgrasp " + shlex.join(getattr(args, "argv", sys.argv[1:]))
+
+
 def _views(args: argparse.Namespace) -> int:
     _require_training("views")
     import torch
 
-    import heapgrasp
     from heapgrasp.nets.device import resolve_device
     from heapgrasp.nets.train_views import (
         TrainConfig,
@@ -75,7 +87,7 @@ def _views(args: argparse.Namespace) -> int:
         save_view_network,
         train,
     )
-    from heapgrasp.nets.training import finite
+    from heapgrasp.nets.training import card_header, data_sources, write_metrics
     from heapgrasp.nets.view_data import (
         ViewDataError,
         check_compatible,
@@ -84,9 +96,7 @@ def _views(args: argparse.Namespace) -> int:
     )
     from heapgrasp.planning.view_eval import evaluate
 
-    if args.workers is not None:
-        torch.set_num_threads(args.workers)
-    workers = args.workers or 1
+    workers = _threads(args)
     try:
         device = resolve_device(args.device)
         config = TrainConfig(
@@ -154,18 +164,9 @@ def _views(args: argparse.Namespace) -> int:
     }
     if test_data is not None:
         metrics["test"] = evaluate(result.net, test_data, loss=config.loss, device=device)
-    metrics = finite(metrics)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, allow_nan=False) + "\n")
-    command = "heapgrasp " + shlex.join(getattr(args, "argv", sys.argv[1:]))
-    data = {
-        "train": [s.as_dict() for s in train_data.sources],
-        "val": [s.as_dict() for s in val_data.sources],
-        "test": [s.as_dict() for s in test_data.sources] if test_data is not None else [],
-    }
+    metrics = write_metrics(out, metrics)
     card = {
-        "command": command,
-        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
-        "package_version": heapgrasp.__version__,
+        **card_header(_command(args)),
         "machine": {
             "platform": platform.platform(),
             "cpus": os.cpu_count(),
@@ -197,7 +198,7 @@ def _views(args: argparse.Namespace) -> int:
             k: getattr(train_data.geometry, k)
             for k in ("resolution", "U", "V", "theta_max", "cube_size", "radius", "lam")
         },
-        "data": data,
+        "data": data_sources(train_data, val_data, test_data),
         "training": {
             **config.as_dict(),
             "device": device,
@@ -226,8 +227,6 @@ def _views(args: argparse.Namespace) -> int:
 
 def _grasps(args: argparse.Namespace) -> int:
     _require_training("grasps")
-    import torch
-
     from heapgrasp.nets.device import resolve_device
     from heapgrasp.nets.grasp_data import (
         GraspDataError,
@@ -243,9 +242,7 @@ def _grasps(args: argparse.Namespace) -> int:
     )
     from heapgrasp.nets.training import TrainSetupError
 
-    if args.workers is not None:
-        torch.set_num_threads(args.workers)
-    workers = args.workers or 1
+    workers = _threads(args)
     try:
         device = resolve_device(args.device)
         dirs = find_datasets(args.data)
@@ -299,7 +296,7 @@ def _grasps(args: argparse.Namespace) -> int:
         val_data=val_data,
         test_data=test_data,
         device=device,
-        command="heapgrasp " + shlex.join(getattr(args, "argv", sys.argv[1:])),
+        command=_command(args),
     )
     print((Path(args.out) / "metrics.json").read_text().rstrip())
     print("wrote " + ", ".join(str(p) for p in written))
@@ -367,19 +364,7 @@ def add_parser(
         help="loss on the U x V map, labels clipped to [0, 1] (default bce; mse through "
         "the sigmoid can stall with every output saturated)",
     )
-    v.add_argument(
-        "--device",
-        default="cpu",
-        help="cpu, cuda, cuda:N or auto (cuda where present) (default cpu)",
-    )
-    v.add_argument(
-        "--resume",
-        action="store_true",
-        help="continue OUT's checkpoint (same data and settings; else exit 2)",
-    )
-    v.add_argument(
-        "--seed", type=int_at_least(0), default=0, help="initial weights, order, symmetries (0)"
-    )
+    _add_run_options(v, seed_help="initial weights, order, symmetries (0)")
     v.add_argument(
         "--in-channels",
         type=int,
@@ -388,15 +373,7 @@ def add_parser(
         help="1: occupancy only (the paper); 2: plus the region mask eq. 14 was counted on; "
         "3: plus the distance of each voxel to the current camera",
     )
-    v.add_argument(
-        "--workers",
-        type=int_at_least(1),
-        default=None,
-        help="CPU threads of PyTorch and of reading the shards (default: PyTorch's)",
-    )
-    v.add_argument(
-        "--no-progress", action="store_true", help="no progress bar (one line per epoch)"
-    )
+    _add_cpu_options(v, "")
     v.set_defaults(func=_views)
     _add_grasps(sub)
     return p
@@ -483,27 +460,35 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
         help="kernel of the last decoder convolution and the three heads (default 3; "
         "VGN's 5 costs about 4x more at full resolution, where most of the time goes)",
     )
-    g.add_argument(
+    _add_run_options(g, seed_help="initial weights, order, augmentation (0)")
+    _add_cpu_options(g, "; 1 is faster while other jobs share the CPU")
+    g.set_defaults(func=_grasps)
+
+
+def _add_run_options(p: argparse.ArgumentParser, *, seed_help: str) -> None:
+    """``--device``, ``--resume`` and ``--seed`` (what it draws: ``seed_help``)."""
+    p.add_argument(
         "--device",
         default="cpu",
         help="cpu, cuda, cuda:N or auto (cuda where present) (default cpu)",
     )
-    g.add_argument(
+    p.add_argument(
         "--resume",
         action="store_true",
         help="continue OUT's checkpoint (same data and settings; else exit 2)",
     )
-    g.add_argument(
-        "--seed", type=int_at_least(0), default=0, help="initial weights, order, augmentation (0)"
-    )
-    g.add_argument(
+    p.add_argument("--seed", type=int_at_least(0), default=0, help=seed_help)
+
+
+def _add_cpu_options(p: argparse.ArgumentParser, workers_note: str) -> None:
+    """``--workers`` (its default's help followed by ``workers_note``) and
+    ``--no-progress``."""
+    p.add_argument(
         "--workers",
         type=int_at_least(1),
         default=None,
-        help="CPU threads of PyTorch and of reading the shards (default: PyTorch's; 1 "
-        "is faster while other jobs share the CPU)",
+        help=f"CPU threads of PyTorch and of reading the shards (default: PyTorch's{workers_note})",
     )
-    g.add_argument(
+    p.add_argument(
         "--no-progress", action="store_true", help="no progress bar (one line per epoch)"
     )
-    g.set_defaults(func=_grasps)
