@@ -5,25 +5,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use heapgrasp_core::grasp_label::{GraspLabeller, GraspScene, HandGeometry, LabelParams};
+use heapgrasp_core::gripper::box_corners;
 use heapgrasp_core::Pose;
-
-/// The Franka Panda hand (`PANDA_HAND`).
-fn panda() -> HandGeometry {
-    HandGeometry {
-        finger_width: 0.021,
-        finger_tip: 0.0072,
-        finger_base: -0.0466,
-        finger_split: -0.02,
-        tip_thickness: 0.016,
-        base_thickness: 0.026,
-        palm_front: -0.039,
-        palm_split: -0.075,
-        palm_back: -0.131,
-        palm_front_half: [0.022, 0.101],
-        palm_back_half: [0.032, 0.104],
-        max_opening: 0.08,
-    }
-}
 
 /// A ring of `n` points of radius `r` at height `z`, starting at angle `a0`, spanning `da`.
 fn ring(r: f64, z: f64, n: usize, a0: f64, da: f64) -> Vec<f64> {
@@ -91,16 +74,9 @@ fn bottle() -> Vec<Vec<f64>> {
     ]
 }
 
+/// A box of half extents `h` about the origin.
 fn cuboid(h: [f64; 3]) -> Vec<f64> {
-    let mut v = Vec::new();
-    for sx in [-1.0, 1.0] {
-        for sy in [-1.0, 1.0] {
-            for sz in [-1.0, 1.0] {
-                v.extend([sx * h[0], sy * h[1], sz * h[2]]);
-            }
-        }
-    }
-    v
+    box_corners(h.map(|x| -x), h)
 }
 
 /// A lumpy blob of 300 vertices (the random_urdfs meshes are a few hundred).
@@ -140,7 +116,7 @@ fn unit(a: [f64; 3]) -> [f64; 3] {
 /// with outward normal n_z > -0.1, depth U[-0.1, 1.1] finger depths in front of the
 /// palm, z = -normal, 6 yaws in [0, π).
 fn grasps(objects: &[([f64; 3], f64)], rand: &mut impl FnMut() -> f64) -> Vec<Pose> {
-    let hand = panda();
+    let hand = HandGeometry::panda();
     let mut out = Vec::new();
     while out.len() < 720 {
         let (c, r) = objects[(rand() * objects.len() as f64) as usize % objects.len()];
@@ -188,7 +164,7 @@ fn label(c: &mut Criterion) {
         min_width: 0.004,
         approach_lag: 0.0015,
     };
-    let mut parts = panda().parts();
+    let mut parts = HandGeometry::panda().parts();
     (parts.palm_threshold, parts.finger_threshold) = (0.0027, 0.0012);
     let mut labeller =
         GraspLabeller::new(GraspScene::new(0.0).expect("table"), &parts, params).expect("valid");

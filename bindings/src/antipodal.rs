@@ -3,22 +3,18 @@
 use heapgrasp_core::antipodal::{self, AntipodalParams, AntipodalScene};
 use heapgrasp_core::Error;
 use numpy::PyArray1;
-use pyo3::exceptions::PyKeyError;
 use pyo3::prelude::*;
 use pyo3::types::PyMapping;
 
-use crate::convert::{array_arg, bool_arg, floats_arg, is_bool, shape_str, type_name};
+use crate::convert::{
+    array_arg, bool_arg, floats_arg, is_bool, mapping_item, shape_str, type_name,
+};
 use crate::errors::{CoreError, InvalidValueError, ShapeError};
+use crate::gripper::hand_geometry;
 
 /// `params[key]`; a missing key raises `InvalidValueError` naming it.
 fn item<'py>(d: &Bound<'py, PyMapping>, key: &str) -> PyResult<Bound<'py, PyAny>> {
-    d.get_item(key).map_err(|e| {
-        if e.is_instance_of::<PyKeyError>(d.py()) {
-            InvalidValueError::new_err(format!("params: missing key {key:?}"))
-        } else {
-            e
-        }
-    })
+    mapping_item(d, "params", key)
 }
 
 fn float(d: &Bound<'_, PyMapping>, key: &str) -> PyResult<f64> {
@@ -53,23 +49,15 @@ fn planner_params(d: &Bound<'_, PyAny>) -> PyResult<AntipodalParams> {
         ))
     })?;
     let f = |k: &str| float(d, k);
+    let (voxel_size, origin_z) = (f("voxel_size")?, f("origin_z")?);
+    let max_opening = f("max_opening")?;
+    let (opening_margin, clearance) = (f("opening_margin")?, f("clearance")?);
     Ok(AntipodalParams {
-        voxel_size: f("voxel_size")?,
-        origin_z: f("origin_z")?,
-        max_opening: f("max_opening")?,
-        opening_margin: f("opening_margin")?,
-        clearance: f("clearance")?,
-        finger_width: f("finger_width")?,
-        finger_tip: f("finger_tip")?,
-        finger_base: f("finger_base")?,
-        finger_split: f("finger_split")?,
-        tip_thickness: f("tip_thickness")?,
-        base_thickness: f("base_thickness")?,
-        palm_front: f("palm_front")?,
-        palm_split: f("palm_split")?,
-        palm_back: f("palm_back")?,
-        palm_front_half: pair(d, "palm_front_half")?,
-        palm_back_half: pair(d, "palm_back_half")?,
+        voxel_size,
+        origin_z,
+        opening_margin,
+        clearance,
+        hand: hand_geometry(f, |k| pair(d, k), Some(max_opening))?,
         pregrasp_distance: f("pregrasp_distance")?,
         table_z: f("table_z")?,
         table_clearance: f("table_clearance")?,

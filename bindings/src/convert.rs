@@ -11,8 +11,9 @@ use heapgrasp_core::{PinholeCamera, Pose, Result as CoreResult};
 use numpy::{
     Element, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray, PyUntypedArrayMethods,
 };
+use pyo3::exceptions::PyKeyError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyByteArray, PyBytes, PyString};
+use pyo3::types::{PyBool, PyByteArray, PyBytes, PyMapping, PyString};
 
 use crate::camera::PyPinholeCamera;
 use crate::errors::{IntoPyResult, InvalidValueError, ShapeError};
@@ -402,4 +403,20 @@ pub fn int_arg(obj: &Bound<'_, PyAny>, name: &str, lo: i64, hi: i64, what: &str)
         return Err(bad());
     }
     Ok(v)
+}
+
+/// `d[key]` of the mapping argument `what`; a missing key raises `InvalidValueError`
+/// naming it (`what: missing key "key"`), other errors pass through.
+pub fn mapping_item<'py>(
+    d: &Bound<'py, PyMapping>,
+    what: &str,
+    key: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    d.get_item(key).map_err(|e| {
+        if e.is_instance_of::<PyKeyError>(d.py()) {
+            InvalidValueError::new_err(format!("{what}: missing key {key:?}"))
+        } else {
+            e
+        }
+    })
 }

@@ -1,18 +1,16 @@
 //! `GraspLabeller`.
 
-use heapgrasp_core::grasp_label::{
-    GraspLabeller, GraspScene, HandGeometry, HandParts, LabelParams,
-};
+use heapgrasp_core::grasp_label::{GraspLabeller, GraspScene, HandParts, LabelParams};
 use numpy::PyArray1;
-use pyo3::exceptions::PyKeyError;
 use pyo3::prelude::*;
 use pyo3::types::PyMapping;
 
 use crate::convert::{
-    array_arg, check_tail, detached, float_arg, floats_arg, int_arg, items_arg, pose_arg,
-    poses_arg, type_name,
+    array_arg, check_tail, detached, float_arg, floats_arg, int_arg, items_arg, mapping_item,
+    pose_arg, poses_arg, type_name,
 };
 use crate::errors::{IntoPyResult, InvalidValueError};
+use crate::gripper::hand_geometry;
 
 /// Most convex pieces one object may have.
 const MAX_PIECES: usize = 4096;
@@ -27,13 +25,7 @@ type Labels<'py> = (
 
 /// `hand[key]` as a number; a missing key or a non-number raises `InvalidValueError`.
 fn hand_item<'py>(d: &Bound<'py, PyMapping>, key: &str) -> PyResult<Bound<'py, PyAny>> {
-    d.get_item(key).map_err(|e| {
-        if e.is_instance_of::<PyKeyError>(d.py()) {
-            InvalidValueError::new_err(format!("hand: missing key {key:?}"))
-        } else {
-            e
-        }
-    })
+    mapping_item(d, "hand", key)
 }
 
 /// `(V, 3)` float64 arrays, copied.
@@ -86,20 +78,7 @@ fn hand_arg(hand: &Bound<'_, PyAny>) -> PyResult<HandParts> {
     }
     let f = |k: &str| float_arg(&hand_item(d, k)?, &format!("hand[{k:?}]"));
     let pair = |k: &str| floats_arg::<2>(&hand_item(d, k)?, &format!("hand[{k:?}]"));
-    let geometry = HandGeometry {
-        finger_width: f("finger_width")?,
-        finger_tip: f("finger_tip")?,
-        finger_base: f("finger_base")?,
-        finger_split: f("finger_split")?,
-        tip_thickness: f("tip_thickness")?,
-        base_thickness: f("base_thickness")?,
-        palm_front: f("palm_front")?,
-        palm_split: f("palm_split")?,
-        palm_back: f("palm_back")?,
-        palm_front_half: pair("palm_front_half")?,
-        palm_back_half: pair("palm_back_half")?,
-        max_opening: f("max_opening")?,
-    };
+    let geometry = hand_geometry(f, pair, None)?;
     geometry.validate().py()?;
     Ok(geometry.parts())
 }

@@ -10,6 +10,7 @@ mod convert;
 mod errors;
 mod filter;
 mod grasp_label;
+mod gripper;
 mod occupancy;
 mod raster;
 mod roofs;

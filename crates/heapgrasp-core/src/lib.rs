@@ -30,6 +30,7 @@ pub mod error;
 pub mod filter;
 pub mod grasp_label;
 pub mod grid;
+pub mod gripper;
 pub mod nms;
 pub mod occupancy;
 pub mod parallel;

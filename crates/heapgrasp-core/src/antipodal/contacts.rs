@@ -119,7 +119,7 @@ pub(super) fn quality(
     }
 
     // Ledge below the fingertips, under the fingers or between them and the contacts.
-    let out_rows = ceil_fast((h_act + p.base_thickness) / v) as i64;
+    let out_rows = ceil_fast((h_act + p.hand.base_thickness) / v) as i64;
     let (hi_a, hi_b) = (clampi(y_hi + 1, 0, b), clampi(jc + out_rows + 1, 0, b));
     let (lo_a, lo_b) = (clampi(jc - out_rows, 0, b), clampi(y_lo, 0, b));
     let mut ledge = false;

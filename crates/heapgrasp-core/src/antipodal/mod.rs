@@ -26,6 +26,7 @@ mod lattice;
 
 use crate::camera::RIGID_TOLERANCE;
 use crate::error::{Error, Result};
+use crate::gripper::HandGeometry;
 use crate::parallel;
 use crate::rounding::{ceil_fast, floor_fast};
 use lattice::{
@@ -83,7 +84,8 @@ impl GripperCells {
         let v = p.voxel_size;
         let clr = p.clearance;
         let pre = p.pregrasp_distance;
-        let half_w = 0.5 * p.finger_width;
+        let hand = &p.hand;
+        let half_w = 0.5 * hand.finger_width;
         let x_pad = cell_range(-half_w, half_w, v);
         let palm_box = |half: [f64; 2], z0: f64, z1: f64| {
             [
@@ -96,14 +98,14 @@ impl GripperCells {
             x_pad,
             x_clear: cell_range(-half_w - clr, half_w + clr, v),
             x_fit: (x_pad.0 - FIT_MARGIN, x_pad.1 + FIT_MARGIN),
-            z_contact: cell_range(p.palm_front, p.finger_tip, v),
-            z_thin: cell_range(p.finger_split, p.finger_tip + clr, v),
-            z_thick: cell_range(p.finger_base - pre - clr, p.finger_split, v),
-            n_thin: (floor_fast(p.tip_thickness / v + EPS) as i64).max(1),
-            n_thick: (floor_fast(p.base_thickness / v + EPS) as i64).max(1),
+            z_contact: cell_range(hand.palm_front, hand.finger_tip, v),
+            z_thin: cell_range(hand.finger_split, hand.finger_tip + clr, v),
+            z_thick: cell_range(hand.finger_base - pre - clr, hand.finger_split, v),
+            n_thin: (floor_fast(hand.tip_thickness / v + EPS) as i64).max(1),
+            n_thick: (floor_fast(hand.base_thickness / v + EPS) as i64).max(1),
             palm: [
-                palm_box(p.palm_front_half, p.palm_split, p.palm_front),
-                palm_box(p.palm_back_half, p.palm_back - pre, p.palm_split),
+                palm_box(hand.palm_front_half, hand.palm_split, hand.palm_front),
+                palm_box(hand.palm_back_half, hand.palm_back - pre, hand.palm_split),
             ],
         }
     }
@@ -117,34 +119,12 @@ pub struct AntipodalParams {
     pub voxel_size: f64,
     /// World z of the grid's bottom face.
     pub origin_z: f64,
-    /// Maximum opening (m).
-    pub max_opening: f64,
+    /// The gripper's boxes and maximum opening.
+    pub hand: HandGeometry,
     /// Extra opening of the executor over the planned width (m).
     pub opening_margin: f64,
     /// Margin between contacts and fingers and around the gripper (m).
     pub clearance: f64,
-    /// Finger extent along x (m).
-    pub finger_width: f64,
-    /// z of the fingertips.
-    pub finger_tip: f64,
-    /// z where the fingers leave the hand.
-    pub finger_base: f64,
-    /// z where the finger changes from its tip to its base.
-    pub finger_split: f64,
-    /// Finger extent along y of the tip part.
-    pub tip_thickness: f64,
-    /// Finger extent along y of the base part.
-    pub base_thickness: f64,
-    /// z of the hand's face toward the fingertips.
-    pub palm_front: f64,
-    /// z where the hand's front part meets its back part.
-    pub palm_split: f64,
-    /// z of the back of the hand.
-    pub palm_back: f64,
-    /// (x, y) half extents of the hand's front part.
-    pub palm_front_half: [f64; 2],
-    /// (x, y) half extents of the hand's back part.
-    pub palm_back_half: [f64; 2],
     /// Distance of the pre-grasp pose back along the approach (m).
     pub pregrasp_distance: f64,
     /// World z of the table.
@@ -173,20 +153,9 @@ impl AntipodalParams {
         Self {
             voxel_size,
             origin_z,
-            max_opening: 0.08,
+            hand: HandGeometry::panda(),
             opening_margin: 0.01,
             clearance: 0.003,
-            finger_width: 0.021,
-            finger_tip: 0.0072,
-            finger_base: -0.0466,
-            finger_split: -0.02,
-            tip_thickness: 0.016,
-            base_thickness: 0.026,
-            palm_front: -0.039,
-            palm_split: -0.075,
-            palm_back: -0.131,
-            palm_front_half: [0.022, 0.101],
-            palm_back_half: [0.032, 0.104],
             pregrasp_distance: 0.05,
             table_z: 0.0,
             table_clearance: 0.005,
@@ -200,25 +169,16 @@ impl AntipodalParams {
     }
 
     fn check(&self) -> Result<()> {
-        let fields = [
+        let fields: Vec<(&str, f64)> = [
             ("voxel_size", self.voxel_size),
             ("origin_z", self.origin_z),
-            ("max_opening", self.max_opening),
+            ("max_opening", self.hand.max_opening),
             ("opening_margin", self.opening_margin),
             ("clearance", self.clearance),
-            ("finger_width", self.finger_width),
-            ("finger_tip", self.finger_tip),
-            ("finger_base", self.finger_base),
-            ("finger_split", self.finger_split),
-            ("tip_thickness", self.tip_thickness),
-            ("base_thickness", self.base_thickness),
-            ("palm_front", self.palm_front),
-            ("palm_split", self.palm_split),
-            ("palm_back", self.palm_back),
-            ("palm_front_half[0]", self.palm_front_half[0]),
-            ("palm_front_half[1]", self.palm_front_half[1]),
-            ("palm_back_half[0]", self.palm_back_half[0]),
-            ("palm_back_half[1]", self.palm_back_half[1]),
+        ]
+        .into_iter()
+        .chain(self.hand.named_lengths())
+        .chain([
             ("pregrasp_distance", self.pregrasp_distance),
             ("table_z", self.table_z),
             ("table_clearance", self.table_clearance),
@@ -227,8 +187,9 @@ impl AntipodalParams {
             ("min_contact_height", self.min_contact_height),
             ("ledge_factor", self.ledge_factor),
             ("friction_angle", self.friction_angle),
-        ];
-        for (name, x) in fields {
+        ])
+        .collect();
+        for &(name, x) in &fields {
             if !x.is_finite() {
                 return Err(Error::value(name, x, "must be finite"));
             }
@@ -236,8 +197,12 @@ impl AntipodalParams {
         if !(self.voxel_size > 0.0) {
             return Err(Error::value("voxel_size", self.voxel_size, "must be > 0"));
         }
-        if !(self.max_opening > 0.0) {
-            return Err(Error::value("max_opening", self.max_opening, "must be > 0"));
+        if !(self.hand.max_opening > 0.0) {
+            return Err(Error::value(
+                "max_opening",
+                self.hand.max_opening,
+                "must be > 0",
+            ));
         }
         // The gripper goes on the lattice as cell offsets: keep every length (all fields
         // but the voxel size, the two world heights and the dimensionless ones) within
@@ -250,7 +215,7 @@ impl AntipodalParams {
             "ledge_factor",
             "friction_angle",
         ];
-        for (name, x) in fields {
+        for &(name, x) in &fields {
             if !dimensionless.contains(&name) && !(x.abs() <= limit) {
                 return Err(Error::value(
                     name,
@@ -601,7 +566,7 @@ impl Orientation<'_> {
         let e_plus = ((y_hi - jc) as f64 + 0.5) * v - dy;
         let e_minus = ((jc - y_lo) as f64 + 0.5) * v + dy;
         let width = 2.0 * (e_plus.max(e_minus) + self.p.clearance);
-        if !(width <= self.p.max_opening + EPS) {
+        if !(width <= self.p.hand.max_opening + EPS) {
             return None;
         }
         if let Some(c_side) = &t.c_side {
@@ -612,7 +577,7 @@ impl Orientation<'_> {
                 return None;
             }
         }
-        let h_act = 0.5 * self.p.max_opening.min(width + self.p.opening_margin);
+        let h_act = 0.5 * self.p.hand.max_opening.min(width + self.p.opening_margin);
         Some(Closing {
             hi_row,
             lo_row,
@@ -640,7 +605,10 @@ impl Orientation<'_> {
         let [a, b, c] = dims;
         let [ic, jc, kc] = cell;
         let h = g.h_act;
-        for (cum, th) in [(&t.c_thin, p.tip_thickness), (&t.c_thick, p.base_thickness)] {
+        for (cum, th) in [
+            (&t.c_thin, p.hand.tip_thickness),
+            (&t.c_thick, p.hand.base_thickness),
+        ] {
             for (y0, y1) in [(h - clr, h + th + clr), (-h - th - clr, -h + clr)] {
                 let r0 = clampi(jc + ceil_fast((dy + y0) / v - EPS) as i64, 0, b);
                 let r1 = clampi(jc + floor_fast((dy + y1) / v + EPS) as i64 + 1, 0, b);
@@ -673,10 +641,15 @@ impl Orientation<'_> {
         let rz = self.rot[2];
         let pre = p.pregrasp_distance;
         let floor = p.table_z + p.table_clearance;
-        let low_x = -rz[0].abs() * (0.5 * p.finger_width);
+        let hand = &p.hand;
+        let low_x = -rz[0].abs() * (0.5 * hand.finger_width);
         for (th, z0, z1) in [
-            (p.tip_thickness, p.finger_split - pre, p.finger_tip),
-            (p.base_thickness, p.finger_base - pre, p.finger_split),
+            (hand.tip_thickness, hand.finger_split - pre, hand.finger_tip),
+            (
+                hand.base_thickness,
+                hand.finger_base - pre,
+                hand.finger_split,
+            ),
         ] {
             let low_z = (rz[2] * z0).min(rz[2] * z1);
             for (y0, y1) in [(h, h + th), (-h - th, -h)] {
@@ -687,8 +660,8 @@ impl Orientation<'_> {
             }
         }
         for (half, z0, z1) in [
-            (p.palm_front_half, p.palm_split, p.palm_front),
-            (p.palm_back_half, p.palm_back - pre, p.palm_split),
+            (hand.palm_front_half, hand.palm_split, hand.palm_front),
+            (hand.palm_back_half, hand.palm_back - pre, hand.palm_split),
         ] {
             let low = -rz[0].abs() * half[0] - rz[1].abs() * half[1] + (rz[2] * z0).min(rz[2] * z1);
             if !(pz + low >= floor) {

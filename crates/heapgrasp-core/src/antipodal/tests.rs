@@ -153,10 +153,10 @@ fn extreme_gripper_lengths_are_refused_not_a_panic_or_a_hang() {
     let b = boxed([8, 7, 0], [12, 13, 6]);
     type Change = fn(&mut AntipodalParams);
     let cases: [(&str, Change); 5] = [
-        ("tip_thickness", |p| p.tip_thickness *= 1e300),
-        ("base_thickness", |p| p.base_thickness *= 1e300),
-        ("palm_front", |p| p.palm_front *= 1e300),
-        ("finger_width", |p| p.finger_width *= 1e300),
+        ("tip_thickness", |p| p.hand.tip_thickness *= 1e300),
+        ("base_thickness", |p| p.hand.base_thickness *= 1e300),
+        ("palm_front", |p| p.hand.palm_front *= 1e300),
+        ("finger_width", |p| p.hand.finger_width *= 1e300),
         ("max_opening", |p| p.voxel_size *= 1e-300), // the first length checked
     ];
     for (name, change) in cases {
@@ -181,7 +181,7 @@ fn a_gripper_much_longer_than_the_lattice_is_scanned_quickly() {
     let b = boxed([8, 7, 0], [12, 13, 6]);
     let mut p = AntipodalParams::panda(V, 0.0);
     let far = 0.9 * MAX_GRIPPER_CELLS as f64 * V;
-    (p.palm_front, p.finger_width) = (-far, far);
+    (p.hand.palm_front, p.hand.finger_width) = (-far, far);
     let start = std::time::Instant::now();
     let best = run_with(&b, &p, &[top_down()], &[0.0]).expect("valid input");
     assert!(start.elapsed().as_secs_f64() < 5.0, "{:?}", start.elapsed());

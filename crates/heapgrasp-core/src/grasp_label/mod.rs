@@ -46,8 +46,9 @@ mod scene;
 #[cfg(test)]
 mod tests;
 
+pub use crate::gripper::HandGeometry;
 pub use convex::MAX_PIECE_VERTICES;
-pub use hand::{HandGeometry, HandParts};
+pub use hand::HandParts;
 pub use scene::GraspScene;
 
 use nalgebra::{Matrix3, Vector3};

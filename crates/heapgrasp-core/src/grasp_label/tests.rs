@@ -1,23 +1,5 @@
 use super::*;
 
-/// The Franka Panda hand's numbers (`PANDA_HAND` in Python), for the tests only.
-fn panda() -> HandGeometry {
-    HandGeometry {
-        finger_width: 0.021,
-        finger_tip: 0.0072,
-        finger_base: -0.0466,
-        finger_split: -0.02,
-        tip_thickness: 0.016,
-        base_thickness: 0.026,
-        palm_front: -0.039,
-        palm_split: -0.075,
-        palm_back: -0.131,
-        palm_front_half: [0.022, 0.101],
-        palm_back_half: [0.032, 0.104],
-        max_opening: 0.08,
-    }
-}
-
 fn params() -> LabelParams {
     LabelParams {
         pregrasp_distance: 0.05,
@@ -50,15 +32,7 @@ fn top_down(t: [f64; 3]) -> Pose {
 
 /// Corners of a box of half extents `h` about the origin, flat (8, 3).
 fn box_piece(h: [f64; 3]) -> Vec<f64> {
-    let mut v = Vec::new();
-    for sx in [-1.0, 1.0] {
-        for sy in [-1.0, 1.0] {
-            for sz in [-1.0, 1.0] {
-                v.extend([sx * h[0], sy * h[1], sz * h[2]]);
-            }
-        }
-    }
-    v
+    crate::gripper::box_corners(h.map(|x| -x), h)
 }
 
 /// A polyhedral sphere of radius `r` (latitude-longitude vertices, poles included).
@@ -79,8 +53,12 @@ fn sphere_piece(r: f64) -> Vec<f64> {
 }
 
 fn labeller(objects: &[(i32, [f64; 3], Vec<f64>)]) -> GraspLabeller {
-    let mut l =
-        GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), params()).unwrap();
+    let mut l = GraspLabeller::new(
+        GraspScene::new(0.0).unwrap(),
+        &HandGeometry::panda().parts(),
+        params(),
+    )
+    .unwrap();
     for (id, at, piece) in objects {
         l.add_object(*id, translation(*at), &[piece], 0.0).unwrap();
     }
@@ -176,7 +154,7 @@ fn contact_thresholds_widen_what_touches() {
         [0.1, 0.0, 0.032 + 0.002],
     );
     assert_eq!(labeller(&[]).label_one(&side).reason, Reason::Empty);
-    let mut hand = panda().parts();
+    let mut hand = HandGeometry::panda().parts();
     hand.palm_threshold = 0.0025;
     hand.finger_threshold = 0.0012;
     let l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), &hand, params()).unwrap();
@@ -211,7 +189,12 @@ fn the_approach_lag_shortens_the_sweep() {
     assert_eq!(labeller(&[]).label_one(&low).reason, Reason::Collision);
     let mut p = params();
     p.approach_lag = 0.001;
-    let l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), p).unwrap();
+    let l = GraspLabeller::new(
+        GraspScene::new(0.0).unwrap(),
+        &HandGeometry::panda().parts(),
+        p,
+    )
+    .unwrap();
     assert_eq!(l.label_one(&low).reason, Reason::Empty);
 }
 
@@ -232,8 +215,12 @@ fn a_sphere_is_held_through_its_centre_and_not_past_the_friction_cone() {
     // A larger friction coefficient holds it.
     let mut grippy = params();
     grippy.friction = 2.0;
-    let mut l2 =
-        GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), grippy).unwrap();
+    let mut l2 = GraspLabeller::new(
+        GraspScene::new(0.0).unwrap(),
+        &HandGeometry::panda().parts(),
+        grippy,
+    )
+    .unwrap();
     l2.add_object(3, translation([0.0, 0.0, r]), &[&sphere_piece(r)], 0.0)
         .unwrap();
     assert_eq!(l2.label_one(&tip_at(55.0)).reason, Reason::Success);
@@ -259,7 +246,12 @@ fn a_thin_sheet_closes_too_narrow() {
     assert_eq!(label.reason, Reason::Success, "{label:?}");
     let mut p = params();
     p.min_width = 0.005;
-    let mut l = GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), p).unwrap();
+    let mut l = GraspLabeller::new(
+        GraspScene::new(0.0).unwrap(),
+        &HandGeometry::panda().parts(),
+        p,
+    )
+    .unwrap();
     l.add_object(
         1,
         translation([0.0, 0.0, 0.03]),
@@ -333,22 +325,22 @@ fn bad_parameters_and_pieces_are_errors() {
     let mut p = params();
     p.friction = f64::NAN;
     assert!(matches!(
-        GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), p),
+        GraspLabeller::new(GraspScene::new(0.0).unwrap(), &HandGeometry::panda().parts(), p),
         Err(Error::Value { name, .. }) if name == "friction"
     ));
-    let mut hand = panda();
+    let mut hand = HandGeometry::panda();
     hand.finger_split = 0.01;
     assert!(matches!(
         hand.validate(),
         Err(Error::Value { name, .. }) if name == "hand.finger_split"
     ));
-    let mut parts = panda().parts();
+    let mut parts = HandGeometry::panda().parts();
     parts.right.clear();
     assert!(matches!(
         GraspLabeller::new(GraspScene::new(0.0).unwrap(), &parts, params()),
         Err(Error::Value { name, .. }) if name == "hand.right"
     ));
-    let mut parts = panda().parts();
+    let mut parts = HandGeometry::panda().parts();
     parts.left[1] = vec![0.0; 12];
     assert!(matches!(
         GraspLabeller::new(GraspScene::new(0.0).unwrap(), &parts, params()),
@@ -356,7 +348,12 @@ fn bad_parameters_and_pieces_are_errors() {
     ));
     let mut p = params();
     p.min_width = 0.09;
-    assert!(GraspLabeller::new(GraspScene::new(0.0).unwrap(), &panda().parts(), p).is_err());
+    assert!(GraspLabeller::new(
+        GraspScene::new(0.0).unwrap(),
+        &HandGeometry::panda().parts(),
+        p
+    )
+    .is_err());
     assert!(GraspScene::new(f64::INFINITY).is_err());
     let mut s = GraspScene::new(0.0).unwrap();
     let flat = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0];
