@@ -1248,25 +1248,31 @@ def test_nms3d(data):
 
 
 # -------------------------------------------------------------------- antipodal_grasps
+#: The Panda hand as GripperGeometry's fields (heapgrasp-core's HandGeometry::panda).
+PANDA_FIELDS = {
+    "finger_width": 0.021,
+    "finger_tip": 0.0072,
+    "finger_base": -0.0466,
+    "finger_split": -0.02,
+    "tip_thickness": 0.016,
+    "base_thickness": 0.026,
+    "palm_front": -0.039,
+    "palm_split": -0.075,
+    "palm_back": -0.131,
+    "palm_front_half": (0.022, 0.101),
+    "palm_back_half": (0.032, 0.104),
+    "max_opening": 0.08,
+}
+
+
 def panda_params(voxel_size: float, origin_z: float) -> dict[str, Any]:
     """heapgrasp-core's AntipodalParams::panda as the Python planner passes it."""
     return {
         "voxel_size": voxel_size,
         "origin_z": origin_z,
-        "max_opening": 0.08,
+        **PANDA_FIELDS,  # the hand's boxes and max_opening
         "opening_margin": 0.01,
         "clearance": 0.003,
-        "finger_width": 0.021,
-        "finger_tip": 0.0072,
-        "finger_base": -0.0466,
-        "finger_split": -0.02,
-        "tip_thickness": 0.016,
-        "base_thickness": 0.026,
-        "palm_front": -0.039,
-        "palm_split": -0.075,
-        "palm_back": -0.131,
-        "palm_front_half": (0.022, 0.101),
-        "palm_back_half": (0.032, 0.104),
         "pregrasp_distance": 0.05,
         "table_z": 0.0,
         "table_clearance": 0.005,
@@ -1483,20 +1489,6 @@ def test_keep_silhouettes(data):
 
 
 # ---------------------------------------------------------------------- GraspLabeller
-PANDA_FIELDS = {
-    "finger_width": 0.021,
-    "finger_tip": 0.0072,
-    "finger_base": -0.0466,
-    "finger_split": -0.02,
-    "tip_thickness": 0.016,
-    "base_thickness": 0.026,
-    "palm_front": -0.039,
-    "palm_split": -0.075,
-    "palm_back": -0.131,
-    "palm_front_half": (0.022, 0.101),
-    "palm_back_half": (0.032, 0.104),
-    "max_opening": 0.08,
-}
 LABELLER_KW = {
     "table_z": 0.0,
     "friction": 1.0,
