@@ -13,13 +13,32 @@ import zipfile
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
+import numpy.typing as npt
 
-__all__ = ["open_shard", "read_manifest", "read_shards"]
+__all__ = [
+    "check_array",
+    "check_finite",
+    "first_of_same",
+    "open_shard",
+    "read_manifest",
+    "read_shards",
+]
 
 _T = TypeVar("_T")
+
+
+class _Dataset(Protocol):
+    @property
+    def split(self) -> str: ...
+
+    @property
+    def sources(self) -> Sequence[Any]: ...
+
+
+_D = TypeVar("_D", bound=_Dataset)
 
 
 def read_manifest(
@@ -108,3 +127,42 @@ def open_shard(
         if isinstance(exc, error):
             raise
         raise error(f"{file}: unreadable shard ({exc})") from None
+
+
+def check_array(
+    file: Path,
+    name: str,
+    a: np.ndarray,
+    dtype: npt.DTypeLike,
+    shape: tuple[int, ...],
+    error: type[Exception],
+) -> None:
+    """``error`` naming ``file`` and array ``name`` unless ``a`` has ``dtype`` and
+    ``shape``."""
+    if a.dtype != dtype or a.shape != shape:
+        raise error(f"{file}: {name!r} is {a.dtype} {a.shape}, expected {np.dtype(dtype)} {shape}")
+
+
+def check_finite(file: Path, name: str, a: np.ndarray, error: type[Exception]) -> None:
+    """``error`` naming ``file`` and array ``name`` where ``a`` holds NaN or infinity."""
+    if not np.isfinite(a).all():
+        raise error(f"{file}: {name!r} holds NaN or infinity")
+
+
+def first_of_same(
+    datasets: Sequence[_D], compatible: Callable[[_D, _D], None], error: type[Exception]
+) -> _D:
+    """The first of ``datasets`` to be concatenated, after ``compatible(first, other)``
+    and a check that ``other`` has the first's split, in turn for every other; ``error``
+    when there is none or a split differs."""
+    if not datasets:
+        raise error("no dataset given")
+    first = datasets[0]
+    for other in datasets[1:]:
+        compatible(first, other)
+        if other.split != first.split:
+            raise error(
+                f"{other.sources[0].path} is a {other.split!r} dataset, "
+                f"{first.sources[0].path} a {first.split!r} one"
+            )
+    return first

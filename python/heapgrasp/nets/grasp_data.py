@@ -36,7 +36,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.nets.datasets import open_shard, read_manifest, read_shards
+from heapgrasp.nets.datasets import (
+    check_array,
+    check_finite,
+    first_of_same,
+    open_shard,
+    read_manifest,
+    read_shards,
+)
 
 __all__ = [
     "DATA_FORMAT",
@@ -191,21 +198,12 @@ def _load_shard(file: Path, expected: int, input_kind: str, r: int) -> dict[str,
         return None
     n = expected
     grid = out.pop(input_kind)
-    if grid.dtype != np.float32 or grid.shape != (n, r, r, r):
-        raise GraspDataError(
-            f"{file}: {input_kind!r} is {grid.dtype} {grid.shape}, expected float32 {(n, r, r, r)}"
-        )
-    if not np.isfinite(grid).all():
-        raise GraspDataError(f"{file}: {input_kind!r} holds NaN or infinity")
+    check_array(file, input_kind, grid, np.float32, (n, r, r, r), GraspDataError)
+    check_finite(file, input_kind, grid, GraspDataError)
     g = int(out["grasp_label"].shape[0]) if out["grasp_label"].ndim == 1 else -1
     for name, (dtype, shape) in {**_PER_SCENE, **_PER_GRASP}.items():
-        a = out[name]
         lead = n if name in _PER_SCENE else g
-        if a.dtype != dtype or a.shape != (lead, *shape):
-            raise GraspDataError(
-                f"{file}: {name!r} is {a.dtype} {a.shape}, expected "
-                f"{np.dtype(dtype)} {(lead, *shape)}"
-            )
+        check_array(file, name, out[name], dtype, (lead, *shape), GraspDataError)
     _check_grasps(file, out, n, r)
     out["grids"] = grid
     return out
@@ -366,16 +364,7 @@ def check_compatible(a: GraspDataset, b: GraspDataset) -> None:
 def concatenate(datasets: Sequence[GraspDataset]) -> GraspDataset:
     """One dataset of several of the same split, input kind and geometry
     (GraspDataError otherwise)."""
-    if not datasets:
-        raise GraspDataError("no dataset given")
-    first = datasets[0]
-    for other in datasets[1:]:
-        check_compatible(first, other)
-        if other.split != first.split:
-            raise GraspDataError(
-                f"{other.sources[0].path} is a {other.split!r} dataset, "
-                f"{first.sources[0].path} a {first.split!r} one"
-            )
+    first = first_of_same(datasets, check_compatible, GraspDataError)
     if len(datasets) == 1:
         return first
     arrays = {n: np.concatenate([getattr(d, n) for d in datasets]) for n in _ARRAYS}

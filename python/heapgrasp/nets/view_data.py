@@ -40,7 +40,14 @@ import torch
 from torch import Tensor
 
 from heapgrasp.geometry.motion import ViewSphere
-from heapgrasp.nets.datasets import open_shard, read_manifest, read_shards
+from heapgrasp.nets.datasets import (
+    check_array,
+    check_finite,
+    first_of_same,
+    open_shard,
+    read_manifest,
+    read_shards,
+)
 
 __all__ = [
     "DATA_FORMAT",
@@ -217,14 +224,8 @@ def _load_shard(file: Path, expected: int, geo: DataGeometry) -> dict[str, np.nd
         return None
     n = expected
     for name, dtype in ARRAYS.items():
-        a = out[name]
-        if a.dtype != dtype or a.shape != (n, *shapes[name]):
-            raise ViewDataError(
-                f"{file}: {name!r} is {a.dtype} {a.shape}, expected "
-                f"{np.dtype(dtype)} {(n, *shapes[name])}"
-            )
-    if not np.isfinite(out["scores"]).all():
-        raise ViewDataError(f"{file}: 'scores' holds NaN or infinity")
+        check_array(file, name, out[name], dtype, (n, *shapes[name]), ViewDataError)
+    check_finite(file, "scores", out["scores"], ViewDataError)
     if (out["segmented"] > out["visible"]).any():
         raise ViewDataError(f"{file}: segmented counts exceed visible counts")
     return out
@@ -271,16 +272,7 @@ def load_view_dataset(path: str | os.PathLike[str], *, workers: int = 1) -> View
 def concatenate(datasets: Sequence[ViewDataset]) -> ViewDataset:
     """One dataset of several of the same split and geometry (ViewDataError otherwise,
     naming the directories and the values that differ)."""
-    if not datasets:
-        raise ViewDataError("no dataset given")
-    first = datasets[0]
-    for other in datasets[1:]:
-        check_compatible(first, other)
-        if other.split != first.split:
-            raise ViewDataError(
-                f"{other.sources[0].path} is a {other.split!r} dataset, "
-                f"{first.sources[0].path} a {first.split!r} one"
-            )
+    first = first_of_same(datasets, check_compatible, ViewDataError)
     if len(datasets) == 1:
         return first
     arrays = {n: np.concatenate([getattr(d, n) for d in datasets]) for n in ARRAYS}
