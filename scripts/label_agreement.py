@@ -1092,7 +1092,8 @@ def markdown(summary: dict[str, Any], command: str) -> str:
 
 def write_summary(out: Path, command: str) -> dict[str, Any]:
     grasps = _read_jsonl(out / "grasps.jsonl")
-    scenes = _read_jsonl(out / "scenes.jsonl")
+    # A scene that crashed and was run again has a line per attempt: the last one counts.
+    scenes = list({s["scene"]: s for s in _read_jsonl(out / "scenes.jsonl")}.values())
     summary = summarize(grasps, scenes)
     summary["command"] = command
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
