@@ -316,7 +316,8 @@ def _same_weights(a: torch.nn.Module, b: torch.nn.Module) -> bool:
 
 def test_resume_continues_exactly(tmp_path: Path, root: Path) -> None:
     """Stopped after epoch 1 and resumed, a 2-epoch training ends with the weights,
-    metrics and best epoch of an uninterrupted run."""
+    metrics and best epoch of an uninterrupted run; resumed with more epochs, it ends
+    as a run asked for them from the start."""
     tr, va = load_grasp_dataset(root / "train"), load_grasp_dataset(root / "val")
     small = {"channels": (2, 2, 2), "head_kernel": 3, "lr": 1e-2, "batch_size": 2}
     config = GraspTrainConfig(epochs=2, seed=3, **small)
@@ -341,6 +342,11 @@ def test_resume_continues_exactly(tmp_path: Path, root: Path) -> None:
     other = GraspTrainConfig(epochs=2, seed=4, **small)
     with pytest.raises(TrainSetupError, match=r"config.seed: 3 there, 4 now"):
         train(other, tr, va, tmp_path / "cut", resume=True, progress=False, log=None)
+    # a finished run goes on for more epochs: as if it had been asked for them at first
+    longer = GraspTrainConfig(epochs=3, seed=3, **small)
+    extended = train(longer, tr, va, tmp_path / "cut", resume=True, progress=False, log=None)
+    three = train(longer, tr, va, tmp_path / "three", progress=False, log=None)
+    assert _same_weights(extended.net, three.net) and len(extended.history) == 3
 
 
 def test_train_grasps_command_writes_a_network_the_planner_runs(tmp_path: Path, root: Path) -> None:

@@ -410,7 +410,9 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
             "  heapgrasp train grasps runs/grasps --out runs/grasp-net --epochs 20\n"
             "  heapgrasp train grasps runs/vgn-grasps --out runs/vgn-net   # tsdf data\n"
             "  heapgrasp train grasps runs/grasps --out runs/grasp-net --epochs 20 "
-            "--resume   # continue after a stop"
+            "--resume   # continue after a stop\n"
+            "  heapgrasp train grasps runs/grasps --out runs/grasp-net --epochs 30 "
+            "--resume   # train a finished run 10 epochs more"
         ),
     )
     g.add_argument(

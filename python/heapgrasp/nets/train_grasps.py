@@ -520,11 +520,15 @@ def train(
     dev = torch.device(device)
     net.to(dev)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
+    # The learning rate is constant and each epoch's order and augmentations come from
+    # (seed, epoch) alone, so a resumed run may also go on for more epochs than asked
+    # first: the epochs are not part of what a checkpoint must match.
+    settings = {k: v for k, v in config.as_dict().items() if k != "epochs"}
     state = start_run(
         out_dir,
         net,
         opt,
-        run_identity(config.as_dict(), train_data, val_data, dict(train_data.geometry)),
+        run_identity(settings, train_data, val_data, dict(train_data.geometry)),
         resume=resume,
         fmt=_CHECKPOINT_FORMAT,
         what="grasp network",
