@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 torch = pytest.importorskip("torch")
 
@@ -358,7 +359,11 @@ def test_grasp_planner_paper_resolution(onnx_files):
     np.testing.assert_allclose(np.linalg.norm(vols.quaternions, axis=-1), 1.0, atol=1e-5)
     # PyTorch's volumes
     quality, rotation, width = _outputs(net, torch.from_numpy(_grid(40))[None, None])
-    np.testing.assert_allclose(vols.quality, quality[0, 0].numpy(), atol=1e-5)
+    # ... their quality kept within hull_margin (1) voxels of the occupied grid, 0 beyond
+    near = ndimage.binary_dilation(_grid(40) > 0, iterations=planner.hull_margin)
+    assert planner.hull_margin == 1 and (~near).any()
+    np.testing.assert_allclose(vols.quality[near], quality[0, 0].numpy()[near], atol=1e-5)
+    assert (vols.quality[~near] == 0.0).all()
     np.testing.assert_allclose(vols.quaternions, rotation[0].permute(1, 2, 3, 0).numpy(), atol=1e-5)
     np.testing.assert_allclose(vols.widths, width[0, 0].numpy(), atol=1e-5)
     # The volumes feed eq. 15 as they are.

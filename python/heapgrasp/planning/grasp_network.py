@@ -4,6 +4,12 @@ grid ``Ŝ≥λ`` (or on a TSDF for the VGN baseline, ``input_kind = "tsdf"``).
 
 The network runs from its ONNX file with onnxruntime (:mod:`heapgrasp.inference`);
 PyTorch is never imported.
+
+As VGN's detection masks out the voxels too far from the measured surface, the planner
+zeroes the quality of every voxel farther than :attr:`NetworkGraspPlanner.hull_margin`
+voxels from the occupied grid: the network is trained only where grasps were sampled
+(near true surfaces, which lie inside the hull), so its quality in the free space above
+the hull is an extrapolation (``docs/experiments.md``, "The grasp network").
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
+from scipy import ndimage
 
 from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.geometry.grid import GridFrame
@@ -83,6 +90,9 @@ class NetworkGraspPlanner:
                 f"hparams input_kind is {kind!r}, not one of {', '.join(INPUT_KINDS)}",
             )
         self.input_kind: str = kind
+        self.hull_margin: int = 1
+        """Voxels around the occupied grid where grasp centres may lie (``occupancy``
+        input; a TSDF network's output is not masked)."""
         """The grid the network was trained on (its file's ``input_kind``): ``"occupancy"``
         (``Ŝ≥λ``, HEAPGrasp and no-vp) or ``"tsdf"`` (the VGN baseline)."""
 
@@ -136,6 +146,12 @@ class NetworkGraspPlanner:
     def _run(self, grids: F32, frames: Sequence[GridFrame]) -> list[GraspVolumes]:
         quality, rotation, width = self.network.run(grids[:, None])
         rot = rotation.transpose(0, 2, 3, 4, 1)
+        if self.input_kind == "occupancy":
+            for i in range(len(grids)):
+                near = grids[i] > 0
+                if self.hull_margin > 0 and near.any():
+                    near = ndimage.binary_dilation(near, iterations=self.hull_margin)
+                quality[i, 0][~near] = 0.0
         return [
             GraspVolumes(
                 frame=f,
