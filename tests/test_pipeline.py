@@ -456,3 +456,28 @@ def test_an_interrupted_run_resumes_without_losing_scenes(tmp_path: Path) -> Non
         again["phases"][0]["camera_path"], records[0]["phases"][0]["camera_path"]
     )
     assert (out / SCENES_FILE).read_text().count("\n") == 3
+
+
+@pytest.mark.parametrize("opens_fully", [False, True])
+def test_a_planner_labelled_fully_open_has_its_grasps_executed_so(
+    tmp_path: Path, opens_fully: bool
+) -> None:
+    """The grasp network's grasps were labelled with the hand fully open (VGN): the phase
+    hands them to the robot at the widest opening; other planners' at their width."""
+    from heapgrasp.planning.antipodal import AntipodalPlanner
+
+    class Narrow(AntipodalPlanner):
+        def predict(self, grid: Any, frame: Any) -> Any:
+            volumes = super().predict(grid, frame)
+            volumes.widths[...] = 0.02
+            return volumes
+
+    planner = Narrow()
+    planner.opens_fully = opens_fully  # type: ignore[attr-defined]
+    model = box_model(tmp_path, BOX)
+    config = RunConfig(method="no-vp", objects=1, category="opaque", grasp_critic="none")
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        result = sim_pipeline(config, world, grasp_planner=planner).plan()
+    assert result.grasp is not None
+    assert result.grasp.width == pytest.approx(0.08 if opens_fully else 0.02)

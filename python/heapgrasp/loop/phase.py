@@ -548,7 +548,10 @@ class Pipeline:
         motion += time_path(approach, self.limits).duration
         positions.append(grasp_position)
         opening = self.robot.gripper.geometry.max_opening
-        grasp = Grasp(chosen.pose, min(chosen.width, opening))
+        # A planner whose grasps were labelled with the hand fully open (the grasp
+        # network, as VGN) has them executed so; the others open to their width + 1 cm.
+        width = opening if getattr(self.grasp_planner, "opens_fully", False) else chosen.width
+        grasp = Grasp(chosen.pose, min(width, opening))
         if self.observer is not None:
             self.observer.phase_ended(grasp)
         return PlanResult(

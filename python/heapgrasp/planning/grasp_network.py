@@ -90,6 +90,11 @@ class NetworkGraspPlanner:
                 f"hparams input_kind is {kind!r}, not one of {', '.join(INPUT_KINDS)}",
             )
         self.input_kind: str = kind
+        self.opens_fully: bool = True
+        """Its grasps are executed with the hand fully open, as they were labelled (VGN's
+        execution; the predicted width is kept in the candidates): opening to the width
+        + 1 cm instead took no-vp's success from 48 % to 19 % on 40 scenes
+        (``docs/experiments.md``, "The grasp network")."""
         self.hull_margin: int = 1
         """Voxels around the occupied grid where grasp centres may lie (``occupancy``
         input; a TSDF network's output is not masked)."""
