@@ -13,13 +13,7 @@ import pytest
 pytest.importorskip("pybullet")
 
 from heapgrasp.cli import main
-from heapgrasp.data.grasps import (
-    GraspDataConfig,
-    draw_scene,
-    generate,
-    observed_surface,
-    read_manifest,
-)
+from heapgrasp.data.grasps import GraspDataConfig, draw_scene, generate, read_manifest
 from heapgrasp.data.scenes import capture_random_views
 from heapgrasp.data.shards import shard_path
 from heapgrasp.geometry.grid import GridFrame
@@ -202,37 +196,6 @@ def test_a_shard_run_again_has_the_same_bytes_and_resume_skips(
     path.write_text(text)
 
 
-def test_observed_surface_points_lie_on_the_hulls_faces() -> None:
-    frame = GridFrame((0.0, 0.0, 0.0), 0.3, R)
-    grid = np.zeros((R, R, R), np.float32)
-    grid[10:20, 12:18, 0:8] = 1.0  # a box on the table
-    rng = np.random.default_rng(0)
-    points, normals = observed_surface(grid, frame, rng, 400)
-    assert points.shape == normals.shape == (400, 3)
-    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-9)
-    v = frame.voxel_size
-    lo, hi = np.array([10, 12, 0]) * v, np.array([20, 18, 8]) * v
-    assert ((points >= lo - 1e-9) & (points <= hi + 1e-9)).all()  # in the box's voxels
-    # the faces' own voxels: the top's normal is up, the sides' horizontal; no bottom
-    top = points[:, 2] > hi[2] - v
-    assert top.any() and (~top).any()
-    middle = (points[:, 2] > 2 * v) & (points[:, 2] < hi[2] - 2 * v)
-    assert (normals[top & ~_edge(points, lo, hi, v), 2] > 0.85).all()  # smoothed normals
-    assert middle.any() and (np.abs(normals[middle & ~_edge(points, lo, hi, v), 2]) < 0.2).all()
-    assert (normals[:, 2] > -0.1).all()
-    # nothing to sample on an empty grid
-    empty = observed_surface(np.zeros((R, R, R), np.float32), frame, rng, 10)
-    assert empty[0].shape == (0, 3)
-
-
-def _edge(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, v: float) -> np.ndarray:
-    """Points in a voxel at a vertical edge of the box (two side faces meet there)."""
-    near_x = (points[:, 0] < lo[0] + v) | (points[:, 0] > hi[0] - v)
-    near_y = (points[:, 1] < lo[1] + v) | (points[:, 1] > hi[1] - v)
-    near_top = points[:, 2] > hi[2] - v
-    return (near_x & near_y) | ((near_x | near_y) & near_top)
-
-
 def test_bad_settings_are_named() -> None:
     with pytest.raises(ValueError, match="split must be one of"):
         GraspDataConfig(split="holdout")
@@ -240,8 +203,6 @@ def test_bad_settings_are_named() -> None:
         GraspDataConfig(points=0)
     with pytest.raises(ValueError, match=r"input must be one of .*got 'depth'"):
         GraspDataConfig(input="depth")
-    with pytest.raises(ValueError, match="observed_points must be an integer >= 0, got -1"):
-        GraspDataConfig(observed_points=-1)
 
 
 def test_cli(

@@ -22,11 +22,9 @@ shard re-run is identical):
    depth camera with the per-category sensor model) gives the TSDF the loop feeds the
    network of ``input_kind = "tsdf"``. The two are separate datasets because the depth
    frames cost ~20 times the silhouettes (``docs/benchmarks.md``);
-3. the labels (:mod:`heapgrasp.sim.grasp_labels`): VGN's sampler, ``points`` points of
-   the true surfaces and, for ``occupancy``, ``observed_points`` of the observed grid's
-   surface (:func:`observed_surface`: VGN samples the surface it observed, phantom parts
-   included) × ``yaws`` yaws, labelled on the exact geometry, reduced to one grasp per
-   point as VGN does; a grasp whose TCP lies outside the grid is dropped; then balanced: every
+3. the labels (:mod:`heapgrasp.sim.grasp_labels`): VGN's sampler, ``points`` surface points ×
+   ``yaws`` yaws, labelled on the exact geometry, reduced to one grasp per point as VGN
+   does; a grasp whose TCP lies outside the grid is dropped; then balanced: every
    positive and as many negatives drawn at random (all of them where there are fewer).
 
 The grid is ``(R, R, R)`` float32 indexed ``[i, j, k]`` along the world's x, y, z
@@ -68,7 +66,6 @@ __all__ = [
     "Scene",
     "draw_scene",
     "generate",
-    "observed_surface",
     "read_manifest",
     "scene_sample",
     "shard_samples",
@@ -151,25 +148,12 @@ class GraspDataConfig(ShardedConfig):
     grasps for the same capture."""
     yaws: int = 6
     """Yaws per point, in [0, π) (VGN)."""
-    observed_points: int = 600
-    """Points on the surface of the observed grid (``occupancy`` datasets), labelled as
-    the true surface's are: VGN samples its grasps on the surface it observed, so its
-    labels also cover the phantom surfaces of a partly seen scene, where the network is
-    queried too (``docs/experiments.md``, "The grasp network")."""
 
     spec: ClassVar[DatasetSpec] = SPEC
 
     def __post_init__(self) -> None:
         super().__post_init__()
         self.positive("max_objects", "L", "points", "yaws")
-        if isinstance(self.observed_points, bool) or not isinstance(self.observed_points, int):
-            raise ValueError(
-                f"observed_points must be an integer >= 0, got {self.observed_points!r}"
-            )
-        if self.observed_points < 0:
-            raise ValueError(
-                f"observed_points must be an integer >= 0, got {self.observed_points!r}"
-            )
         if self.input not in INPUTS:
             raise ValueError(f"input must be one of {INPUTS}, got {self.input!r}")
 
@@ -291,8 +275,7 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
             pipeline.plan()
         frame = pipeline.frame
         max_opening = pipeline.robot.gripper.geometry.max_opening
-        observed = recorder.grid if config.input == "occupancy" else None
-        grasps = _label(world, rng, config, observed, frame)
+        grasps = _label(world, rng, config)
     idx = frame.index(grasps["position"])
     inside = ((idx >= 0) & (idx < frame.resolution)).all(axis=1)
     label = grasps["label"]
@@ -318,70 +301,13 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
     }
 
 
-def _label(
-    world: Any,
-    rng: np.random.Generator,
-    config: GraspDataConfig,
-    observed: F32 | None,
-    frame: Any,
-) -> dict[str, Any]:
+def _label(world: Any, rng: np.random.Generator, config: GraspDataConfig) -> dict[str, Any]:
     """VGN's grasps of the scene, labelled on the exact geometry and reduced to one per
-    point: at ``config.points`` points of the true surfaces and (with an ``observed``
-    grid) ``config.observed_points`` of its surface. ``position`` ``(N, 3)``, ``quat``
-    ``(N, 4)`` (x, y, z, w), ``width`` ``(N,)`` (the widest opening for a failure),
-    ``label`` ``(N,)`` (1 success, 0 failure)."""
+    point: ``position`` ``(N, 3)``, ``quat`` ``(N, 4)`` (x, y, z, w), ``width`` ``(N,)``
+    (the widest opening for a failure), ``label`` ``(N,)`` (1 success, 0 failure)."""
     from heapgrasp.sim import grasp_labels
 
-    true = dict(grasp_labels.label_scene(world, rng, points=config.points, yaws=config.yaws))
-    if observed is None or config.observed_points == 0:
-        return true
-    points, normals = observed_surface(observed, frame, rng, config.observed_points)
-    samples = grasp_labels.grasps_at(
-        points, normals, np.full(len(points), -1, np.int64), rng, config.yaws
-    )
-    seen = grasp_labels.label_samples(world, samples)
-    return {key: np.concatenate([true[key], seen[key]]) for key in true}
-
-
-def observed_surface(
-    grid: F32, frame: Any, rng: np.random.Generator, count: int
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """Up to ``count`` random points on the surface of the occupied part of ``grid``
-    (``(R, R, R)``, occupied where > 0, in ``frame``) and their outward unit normals,
-    ``(P, 3)`` each (world).
-
-    Surface voxels are occupied voxels with an empty face neighbour (outside the grid is
-    empty, below its floor is the table); a point is drawn uniformly in its voxel, its
-    normal is the negative gradient of the occupancy smoothed over one voxel. Points
-    whose normal points more than slightly down (``n_z <=``
-    :data:`heapgrasp.sim.grasp_labels.MIN_NORMAL_Z`) are left out, as on the true
-    surfaces.
-    """
-    from scipy import ndimage
-
-    from heapgrasp.sim.grasp_labels import MIN_NORMAL_Z
-
-    occupied = np.asarray(grid) > 0
-    padded = np.pad(occupied, 1, constant_values=False)
-    padded[1:-1, 1:-1, 0] = True  # the table under the grid's floor
-    inner = np.ones_like(occupied)
-    for axis in range(3):
-        for shift in (-1, 1):
-            inner &= np.roll(padded, shift, axis=axis)[1:-1, 1:-1, 1:-1]
-    surface = np.argwhere(occupied & ~inner)
-    if len(surface) == 0 or count == 0:
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    smooth = ndimage.gaussian_filter(occupied.astype(np.float64), 1.0, mode="constant")
-    gradient = np.stack(np.gradient(smooth), axis=-1)[tuple(surface.T)]
-    norm = np.linalg.norm(gradient, axis=1)
-    normals = -gradient / np.maximum(norm, 1e-12)[:, None]
-    keep = (norm > 1e-6) & (normals[:, 2] > MIN_NORMAL_Z)
-    surface, normals = surface[keep], normals[keep]
-    if len(surface) == 0:
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    pick = rng.choice(len(surface), size=count, replace=len(surface) < count)
-    jitter = rng.uniform(-0.5, 0.5, size=(count, 3)) * frame.voxel_size
-    return frame.centers(surface[pick]) + jitter, normals[pick]
+    return dict(grasp_labels.label_scene(world, rng, points=config.points, yaws=config.yaws))
 
 
 # --------------------------------------------------------------------------- shards
