@@ -22,6 +22,7 @@ what the manifest records).
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 import importlib
 import io
@@ -73,7 +74,7 @@ class DatasetSpec:
 
 
 @dataclass(frozen=True)
-class ShardedConfig:
+class ShardedConfig(abc.ABC):
     """The settings every dataset has; a dataset's config adds its own fields, its
     :attr:`spec` and :meth:`run_shard`."""
 
@@ -120,10 +121,10 @@ class ShardedConfig:
         d.pop("scenes")
         return d
 
+    @abc.abstractmethod
     def run_shard(self, shard: int) -> dict[str, Any]:
         """The arrays of ``shard`` (its scenes run in this process), with the sample
-        axis's ``k`` and the counts ``scenes`` and ``dropped``."""
-        raise NotImplementedError
+        axis's ``k`` and the counts ``scenes`` and ``dropped`` (each dataset's own)."""
 
 
 class ShardFailure(RuntimeError):
