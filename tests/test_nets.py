@@ -371,6 +371,29 @@ def test_grasp_planner_paper_resolution(onnx_files):
     assert cands and all(np.isfinite(c.pose).all() for c in cands)
 
 
+def test_a_tsdf_networks_quality_is_kept_where_vgn_keeps_it(onnx_files, tmp_path):
+    from heapgrasp.nets import export_onnx
+    from heapgrasp.planning.grasp_network import tsdf_valid
+
+    # A table-like surface: unobserved below, the band behind it, the band in front,
+    # free space above (heapgrasp's TSDF: 1 free, 0 unobserved).
+    column = np.array([0, 0, 0, 0, 0, -0.8, -0.3, 0.2, 0.5, 0.9] + [1.0] * 6, np.float32)
+    grid = np.broadcast_to(column, (16, 16, 16)).copy()
+    valid = tsdf_valid(grid)
+    # the front band and two voxels beyond it, never the band behind
+    expected = np.zeros(16, bool)
+    expected[7:12] = True
+    assert (valid == expected).all()
+    assert not tsdf_valid(np.zeros((16, 16, 16), np.float32)).any()
+    # The planner applies it to a TSDF network's quality and keeps the rest.
+    net, _ = onnx_files["grasp16"]
+    path = export_onnx(net, tmp_path / "tsdf.onnx", provenance={}, hparams={"input_kind": "tsdf"})
+    vols = NetworkGraspPlanner(path).predict(grid, _frame(16))
+    quality, _, _ = _outputs(net, torch.from_numpy(grid)[None, None])
+    np.testing.assert_allclose(vols.quality[valid], quality[0, 0].numpy()[valid], atol=1e-5)
+    assert (vols.quality[~valid] == 0.0).all()
+
+
 def test_grasp_planner_batch_matches_single(onnx_files):
     planner = NetworkGraspPlanner(onnx_files["grasp16"][1])
     frame = _frame(SMALL)

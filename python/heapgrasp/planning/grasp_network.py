@@ -6,8 +6,9 @@ The network runs from its ONNX file with onnxruntime (:mod:`heapgrasp.inference`
 PyTorch is never imported.
 
 As VGN's detection masks out the voxels too far from the measured surface, the planner
-zeroes the quality of every voxel farther than :attr:`NetworkGraspPlanner.hull_margin`
-voxels from the occupied grid: the network is trained only where grasps were sampled
+zeroes the quality of a TSDF network outside VGN's mask (:func:`tsdf_valid`), and that of
+an occupancy network farther than :attr:`NetworkGraspPlanner.hull_margin` voxels from
+the occupied grid: the occupancy network is trained only where grasps were sampled
 (near true surfaces, which lie inside the hull), so its quality in the free space above
 the hull is an extrapolation (``docs/experiments.md``, "The grasp network").
 """
@@ -26,7 +27,7 @@ from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.inference import OnnxNetwork
 from heapgrasp.planning.volumes import GraspVolumes
 
-__all__ = ["INPUT_KINDS", "NetworkGraspPlanner", "validate_grid"]
+__all__ = ["INPUT_KINDS", "NetworkGraspPlanner", "tsdf_valid", "validate_grid"]
 
 INPUT_KINDS = ("occupancy", "tsdf")
 """The grids a grasp network reads."""
@@ -47,6 +48,22 @@ def validate_grid(grid: object, resolution: int, what: str = "grid") -> F32:
     if not np.isfinite(grid).all():
         raise ValueError(f"{what} holds NaN or infinity")
     return np.ascontiguousarray(grid)
+
+
+def tsdf_valid(values: F32, iterations: int = 2) -> npt.NDArray[np.bool_]:
+    """Where a TSDF network's grasp centres may lie: VGN's detection mask (Breyer et
+    al. 2020, ``vgn.detection.process``) on heapgrasp's TSDF convention
+    (:meth:`heapgrasp.perception.depth.DepthPerception.tsdf_values`: values in
+    ``[-1, 1]``, 1 in free space, 0 where unobserved).
+
+    The observed band in front of a surface (``0 < value < 0.98``) grown by
+    ``iterations`` voxels, never into the band behind a surface (``value < 0``)."""
+    outside = (values > 0) & (values < 0.98)
+    inside = values < 0
+    if not outside.any():
+        return outside
+    grown = ndimage.binary_dilation(outside, iterations=iterations, mask=~inside)
+    return np.asarray(grown, dtype=bool)
 
 
 class NetworkGraspPlanner:
@@ -90,6 +107,8 @@ class NetworkGraspPlanner:
                 f"hparams input_kind is {kind!r}, not one of {', '.join(INPUT_KINDS)}",
             )
         self.input_kind: str = kind
+        """The grid the network was trained on (its file's ``input_kind``): ``"occupancy"``
+        (``Ŝ≥λ``, HEAPGrasp and no-vp) or ``"tsdf"`` (the VGN baseline)."""
         self.opens_fully: bool = True
         """Its grasps are executed with the hand fully open, as they were labelled (VGN's
         execution; the predicted width is kept in the candidates): opening to the width
@@ -97,9 +116,7 @@ class NetworkGraspPlanner:
         (``docs/experiments.md``, "The grasp network")."""
         self.hull_margin: int = 1
         """Voxels around the occupied grid where grasp centres may lie (``occupancy``
-        input; a TSDF network's output is not masked)."""
-        """The grid the network was trained on (its file's ``input_kind``): ``"occupancy"``
-        (``Ŝ≥λ``, HEAPGrasp and no-vp) or ``"tsdf"`` (the VGN baseline)."""
+        input; a TSDF network's output is masked by :func:`tsdf_valid` instead)."""
 
     @property
     def device(self) -> str:
@@ -151,12 +168,14 @@ class NetworkGraspPlanner:
     def _run(self, grids: F32, frames: Sequence[GridFrame]) -> list[GraspVolumes]:
         quality, rotation, width = self.network.run(grids[:, None])
         rot = rotation.transpose(0, 2, 3, 4, 1)
-        if self.input_kind == "occupancy":
-            for i in range(len(grids)):
-                near = grids[i] > 0
-                if self.hull_margin > 0 and near.any():
-                    near = ndimage.binary_dilation(near, iterations=self.hull_margin)
-                quality[i, 0][~near] = 0.0
+        for i in range(len(grids)):
+            if self.input_kind == "tsdf":
+                valid = tsdf_valid(grids[i])
+            else:
+                valid = grids[i] > 0
+                if self.hull_margin > 0 and valid.any():
+                    valid = ndimage.binary_dilation(valid, iterations=self.hull_margin)
+            quality[i, 0][~valid] = 0.0
         return [
             GraspVolumes(
                 frame=f,
