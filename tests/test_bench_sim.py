@@ -32,8 +32,19 @@ def test_tables_from_a_small_run(tmp_path: Path) -> None:
     assert text == markdown_tables(summaries, base)
     assert "| no-vp (antipodal grasps, critic) |" in text and "92.7 (458/494)" in text
     assert (tmp_path / "no-vp" / "results.json").exists()
-    assert "| Success (%) | 95 % CI |" in text
+    assert "| Success (%) | 95 % CI |" in text and "| Grasp planning / call (ms) |" in text
     saved = json.loads((tmp_path / "summary.json").read_text())["no-vp"]
+    # one grasp-planning call per phase's end and per waypoint that planned grasps
+    phases = json.loads((tmp_path / "no-vp" / "results.json").read_text())["phases"]
+    calls = [p["final_planning_s"] for p in phases] + [
+        w["grasp_planning_s"]
+        for p in phases
+        for w in p.get("waypoints", [])
+        if w.get("grasp_candidates") is not None
+    ]
+    assert calls and saved["grasp_planning_per_call_s"]["mean"] == pytest.approx(
+        sum(calls) / len(calls)
+    )
     if saved["grasps_attempted"]:
         low, high = saved["grasp_success_ci95"]
         assert low <= 100 * saved["grasp_success_rate"] <= high

@@ -232,6 +232,14 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         for w in p.get("waypoints", [])
         if w.get("latency_s") is not None
     ]
+    # One grasp-planning call: the grid to eq. 15's candidates (and the critic's scores),
+    # at a waypoint where grasps were planned or at the end of a phase's viewing.
+    grasp_calls = [
+        float(w["grasp_planning_s"])
+        for p in phase_dicts
+        for w in p.get("waypoints", [])
+        if w.get("grasp_candidates") is not None and w.get("grasp_planning_s") is not None
+    ] + [float(p["final_planning_s"]) for p in phase_dicts if p.get("final_planning_s") is not None]
     per_group: dict[str, Any] = {}
     for group in sorted({r["category"] for r in done}):
         sel = [r for r in done if r["category"] == group]
@@ -262,6 +270,7 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         "stop_reasons": dict(Counter(r["stop_reason"] for r in done)),
         "wall_time_per_scene_s": _stats([float(r["wall_time_s"]) for r in done]),
         "planning_latency_per_waypoint_s": _stats(latencies),
+        "grasp_planning_per_call_s": _stats(grasp_calls),
         "view_waypoints_per_phase": _stats([len(p.get("waypoints", [])) for p in phase_dicts]),
         # Phases whose viewing ended before L waypoints (RunConfig.stop_below).
         "early_stops": sum(1 for p in phase_dicts if p.get("stopped_early")),
@@ -477,9 +486,11 @@ def format_summary(summary: dict[str, Any]) -> str:
         lines.append(f"success rate, 95 % interval (Wilson): [{lo:.1f}, {hi:.1f}] %")
     lat = summary.get("planning_latency_per_waypoint_s", {})
     wall = summary.get("wall_time_per_scene_s", {})
+    grasp = summary.get("grasp_planning_per_call_s", {})
     lines.append(
-        f"planning latency per waypoint: {_fmt(lat, 3)} s; wall-clock per scene: "
-        f"{_fmt(wall, 1)} s; stop reasons: {summary.get('stop_reasons')}"
+        f"planning latency per waypoint: {_fmt(lat, 3)} s; grasp planning per call: "
+        f"{_fmt(grasp, 3)} s; wall-clock per scene: {_fmt(wall, 1)} s; stop reasons: "
+        f"{summary.get('stop_reasons')}"
     )
     if summary.get("early_stops"):
         lines.append(

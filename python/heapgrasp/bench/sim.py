@@ -202,6 +202,12 @@ def _pm(stat: dict[str, Any], digits: int) -> str:
     return f"{stat['mean']:.{digits}f} ± {stat['std']:.{digits}f}"
 
 
+def _ms(stat: dict[str, Any]) -> str:
+    if stat.get("mean") is None:
+        return "–"
+    return f"{1e3 * stat['mean']:.0f} ± {1e3 * stat['std']:.0f}"
+
+
 def _rate(s: dict[str, Any]) -> str:
     r = s.get("grasp_success_rate")
     if r is None:
@@ -224,9 +230,9 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
         "`ideal_depth = true`.",
         "",
         "| Method | Success (%) | 95 % CI | Removed | Trajectory (m) | Shortest ratio (%) "
-        "| Exec. time (s) | Latency / waypoint (s) | Wall / scene (s) | Paper success (%) "
-        "| Paper trajectory (m) | Paper ratio (%) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| Exec. time (s) | Latency / waypoint (s) | Grasp planning / call (ms) "
+        "| Wall / scene (s) | Paper success (%) | Paper trajectory (m) | Paper ratio (%) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for method, s in summaries.items():
         paper = PAPER_TABLE_II.get(method)
@@ -241,6 +247,7 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
             f"| {s.get('label', method)} | {_rate(s)} | {_ci(s)} | {removed} "
             f"| {_pm(s['trajectory_length_m'], 2)} | {_pm(s['shortest_trajectory_ratio'], 0)} "
             f"| {_pm(s['execution_time_s'], 2)} | {_pm(s['planning_latency_per_waypoint_s'], 3)} "
+            f"| {_ms(s.get('grasp_planning_per_call_s', {}))} "
             f"| {_pm(s['wall_time_per_scene_s'], 1)} | {p_cols} |"
         )
     lines += [
