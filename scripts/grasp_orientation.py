@@ -5,7 +5,10 @@ For the successful grasps of a grasp dataset (``heapgrasp data grasps``), the an
 between the network's orientation at the grasp's voxel and the label's, split into the
 **approach axis** (the TCP's z: where the hand comes from) and the **closing axis** (its
 y, folded over the finger swap). The same angle for a network that always approaches
-straight down is printed beside it, as the floor a network has to beat. ``train grasps``
+straight down is printed beside it, as the floor a network has to beat, and the angle between
+each label's approach and the inward normal the input shows at its voxel (the gradient
+of the grid smoothed by a 1-voxel Gaussian: up the occupancy, down the TSDF), which says
+how far the labels' orientation can be read off the input at all. ``train grasps``
 reports the whole rotation angle only; a network whose approach is off collides where
 its quality says it grasps::
 
@@ -22,6 +25,7 @@ import sys
 import numpy as np
 from heapgrasp.inference import OnnxNetwork
 from heapgrasp.nets.grasp_data import GraspDataError, load_grasp_dataset
+from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
 
@@ -55,7 +59,8 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, GraspDataError, ValueError) as err:
         print(f"grasp_orientation: error: {err}", file=sys.stderr)
         return 2
-    label_z, label_y, net_z, net_y = [], [], [], []
+    label_z, label_y, net_z, net_y, inward = [], [], [], [], []
+    sign = -1.0 if data.input_kind == "tsdf" else 1.0
     for s in range(min(args.scenes, len(data))):
         rows = slice(int(data.offsets[s]), int(data.offsets[s + 1]))
         ok = data.label[rows] == 1
@@ -69,9 +74,14 @@ def main(argv: list[str] | None = None) -> int:
         label_y.append(label[:, :, 1])
         net_z.append(predicted[:, :, 2])
         net_y.append(predicted[:, :, 1])
+        smooth = ndimage.gaussian_filter(data.grids[s].astype(np.float64), 1.0)
+        inward.append(sign * np.stack([g[i, j, k] for g in np.gradient(smooth)], axis=1))
     lz, ly = np.concatenate(label_z), np.concatenate(label_y)
     nz, ny = np.concatenate(net_z), np.concatenate(net_y)
     down = np.broadcast_to([0.0, 0.0, -1.0], lz.shape)
+    normal = np.concatenate(inward)
+    length = np.linalg.norm(normal, axis=1)
+    shown = length > 1e-6
     out = {
         "network": args.network,
         "data": args.data,
@@ -80,6 +90,12 @@ def main(argv: list[str] | None = None) -> int:
         "approach_error_deg": _stats(_angles(nz, lz, folded=False)),
         "closing_axis_error_deg": _stats(_angles(ny, ly, folded=True)),
         "straight_down_approach_error_deg": _stats(_angles(down, lz, folded=False)),
+        # the label's approach against the inward normal of the input at its voxel, where
+        # the input has a gradient there (the fraction of the positives that do)
+        "label_approach_to_input_normal_deg": _stats(
+            _angles(normal[shown] / length[shown, None], lz[shown], folded=False)
+        ),
+        "positives_with_input_normal": round(float(shown.mean()), 3),
         "label_side_grasps": round(float((np.abs(lz[:, 2]) < 0.3).mean()), 3),
     }
     print(json.dumps(out, indent=2))
