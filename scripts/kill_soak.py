@@ -39,6 +39,7 @@ TIMINGS = {
     "view_planning_s",
     "latency_s",
     "planning_latency_per_waypoint_s",
+    "grasp_planning_per_call_s",
     "wall_time_per_scene_s",
 }
 

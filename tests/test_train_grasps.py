@@ -352,7 +352,7 @@ def test_resume_continues_exactly(tmp_path: Path, root: Path) -> None:
 def test_train_grasps_command_writes_a_network_the_planner_runs(tmp_path: Path, root: Path) -> None:
     """One epoch: checkpoint, CSV, plot, weights and card, metrics of val and test, and
     an ONNX file NetworkGraspPlanner loads and that gives PyTorch's outputs."""
-    from heapgrasp.planning.grasp_network import NetworkGraspPlanner
+    from heapgrasp.planning.grasp_network import NetworkGraspPlanner, tsdf_valid
 
     data = tmp_path / "data"
     for split, n, seed in (("train", 4, 1), ("val", 2, 2), ("test", 2, 3)):
@@ -376,11 +376,17 @@ def test_train_grasps_command_writes_a_network_the_planner_runs(tmp_path: Path, 
     net = load_grasp_network(out / "grasp_network.safetensors")
     planner = NetworkGraspPlanner(out / "grasp_network.onnx")
     assert planner.network.hparams["input_kind"] == "tsdf"
+    # free space made the band in front of a surface, where VGN's mask keeps the quality
     grid = load_grasp_dataset(data / "val").grids[0]
+    grid = np.where(grid == 1.0, 0.5, grid).astype(np.float32)
     volumes = planner.predict(grid, GridFrame(ORIGIN, SIZE, R))
     with torch.no_grad():
         quality, rotation, width = net(torch.from_numpy(grid)[None, None])
-    np.testing.assert_allclose(volumes.quality, quality[0, 0].numpy(), atol=1e-5)
+    # the quality kept where VGN's mask keeps it, 0 elsewhere
+    valid = tsdf_valid(grid)
+    assert valid.any() and (~valid).any()
+    np.testing.assert_allclose(volumes.quality[valid], quality[0, 0].numpy()[valid], atol=1e-5)
+    assert (volumes.quality[~valid] == 0.0).all()
     np.testing.assert_allclose(volumes.widths, width[0, 0].numpy(), atol=1e-5)
     np.testing.assert_allclose(
         volumes.quaternions, rotation[0].permute(1, 2, 3, 0).numpy(), atol=1e-5
