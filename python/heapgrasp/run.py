@@ -233,13 +233,18 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         if w.get("latency_s") is not None
     ]
     # One grasp-planning call: the grid to eq. 15's candidates (and the critic's scores),
-    # at a waypoint where grasps were planned or at the end of a phase's viewing.
+    # at a waypoint where grasps were planned or at the end of a phase's viewing where the
+    # final grid was planned again.
     grasp_calls = [
         float(w["grasp_planning_s"])
         for p in phase_dicts
         for w in p.get("waypoints", [])
         if w.get("grasp_candidates") is not None and w.get("grasp_planning_s") is not None
-    ] + [float(p["final_planning_s"]) for p in phase_dicts if p.get("final_planning_s") is not None]
+    ] + [
+        float(p["final_planning_s"])
+        for p in phase_dicts
+        if p.get("final_planning_s") is not None and p.get("final_replanned", True)
+    ]
     per_group: dict[str, Any] = {}
     for group in sorted({r["category"] for r in done}):
         sel = [r for r in done if r["category"] == group]

@@ -525,6 +525,9 @@ class Pipeline:
             "frames": self.perception.frames_seen,
             "final_candidates": len(cands),
             "final_planning_s": final_latency,
+            # whether that time planned grasps again (not where viewing stopped early or
+            # the sweep became sure: those candidates were planned at the last waypoint)
+            "final_replanned": final is None,
             "stopped_early": phase.stopped,
             "joint_path_errors": self.joint_path_errors,
             "unreachable_waypoints": self.unreachable_waypoints,
