@@ -80,3 +80,49 @@ def test_tsdf_random_poses(rng):
         r.integrate(depth, cam, pose)
     assert r.weights.sum() > 0
     assert_tsdf_match(vol, r)
+
+
+def _sphere_tsdf(res=40, size=0.30, radius=0.06, trunc=0.03):
+    """A sphere's TSDF as a depth camera leaves it: values in front and up to one
+    truncation behind the surface, deeper voxels unobserved (0, weight 0)."""
+    from heapgrasp.geometry.grid import GridFrame
+
+    frame = GridFrame((-size / 2, -size / 2, 0.0), size, res)
+    centre = np.array([0.01, -0.02, 0.12])
+    sdf = np.linalg.norm(frame.centers(np.argwhere(np.ones((res,) * 3))) - centre, axis=1)
+    sdf = (sdf - radius).reshape((res,) * 3)
+    weights = (sdf >= -trunc).astype(np.float32)
+    values = np.where(weights > 0, np.minimum(1.0, sdf / trunc), 0.0).astype(np.float32)
+    return frame, centre, radius, values, weights
+
+
+def test_tsdf_surface_lies_on_the_surface_with_outward_normals():
+    from heapgrasp.perception.depth import tsdf_surface
+
+    frame, centre, radius, values, weights = _sphere_tsdf()
+    points, normals = tsdf_surface(values, frame, weights)
+    assert len(points) > 500
+    rel = points - centre
+    dist = np.linalg.norm(rel, axis=1)
+    np.testing.assert_allclose(dist, radius, atol=5e-4)  # linear interpolation of a sphere
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-9)
+    cos = np.einsum("ij,ij->i", normals, rel / dist[:, None])
+    assert cos.min() > np.cos(np.radians(6))  # outward, along the radius
+    # without weights, 0 (the TSDF's initial value) marks what was never observed
+    same, _ = tsdf_surface(values, frame)
+    np.testing.assert_allclose(same, points)
+
+
+def test_tsdf_surface_skips_crossings_into_unobserved_voxels():
+    from heapgrasp.perception.depth import tsdf_surface
+
+    frame, _, _, values, weights = _sphere_tsdf()
+    # the value behind the surface unobserved: a sign change into it is no surface
+    behind = values < 0
+    values[behind], weights[behind] = -1.0, 0.0
+    points, normals = tsdf_surface(values, frame, weights)
+    assert points.shape == normals.shape == (0, 3)
+    with pytest.raises(ValueError, match="values must be"):
+        tsdf_surface(values[:-1], frame)
+    with pytest.raises(ValueError, match="weights must be"):
+        tsdf_surface(values, frame, weights[:-1])

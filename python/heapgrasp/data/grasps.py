@@ -24,7 +24,9 @@ shard re-run is identical):
    frames cost ~20 times the silhouettes (``docs/benchmarks.md``);
 3. the labels (:mod:`heapgrasp.sim.grasp_labels`): VGN's sampler, ``points`` surface points ×
    ``yaws`` yaws, labelled on the exact geometry, reduced to one grasp per point as VGN
-   does; a grasp whose TCP lies outside the grid is dropped; then balanced: every
+   does. The points lie on the true meshes for ``occupancy``, and for ``tsdf`` on the
+   surface the TSDF shows (:func:`observed_surface`), as VGN samples them on the cloud
+   it reconstructed; a grasp whose TCP lies outside the grid is dropped; then balanced: every
    positive and as many negatives drawn at random (all of them where there are fewer).
 
 The grid is ``(R, R, R)`` float32 indexed ``[i, j, k]`` along the world's x, y, z
@@ -275,7 +277,9 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
             pipeline.plan()
         frame = pipeline.frame
         max_opening = pipeline.robot.gripper.geometry.max_opening
-        grasps = _label(world, rng, config)
+        grasps = _label(
+            world, rng, config, recorder.grid if config.input == "tsdf" else None, frame
+        )
     idx = frame.index(grasps["position"])
     inside = ((idx >= 0) & (idx < frame.resolution)).all(axis=1)
     label = grasps["label"]
@@ -301,13 +305,55 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
     }
 
 
-def _label(world: Any, rng: np.random.Generator, config: GraspDataConfig) -> dict[str, Any]:
+def _label(
+    world: Any,
+    rng: np.random.Generator,
+    config: GraspDataConfig,
+    tsdf: F32 | None,
+    frame: Any,
+) -> dict[str, Any]:
     """VGN's grasps of the scene, labelled on the exact geometry and reduced to one per
-    point: ``position`` ``(N, 3)``, ``quat`` ``(N, 4)`` (x, y, z, w), ``width`` ``(N,)``
-    (the widest opening for a failure), ``label`` ``(N,)`` (1 success, 0 failure)."""
+    point: ``config.points`` points of the true surfaces, or with a ``tsdf`` of the
+    surface it shows (:func:`observed_surface`). ``position`` ``(N, 3)``, ``quat``
+    ``(N, 4)`` (x, y, z, w), ``width`` ``(N,)`` (the widest opening for a failure),
+    ``label`` ``(N,)`` (1 success, 0 failure)."""
     from heapgrasp.sim import grasp_labels
 
-    return dict(grasp_labels.label_scene(world, rng, points=config.points, yaws=config.yaws))
+    if tsdf is None:
+        return dict(grasp_labels.label_scene(world, rng, points=config.points, yaws=config.yaws))
+    points, normals = observed_surface(tsdf, frame, rng, config.points)
+    samples = grasp_labels.grasps_at(
+        points, normals, np.full(len(points), -1, np.int64), rng, config.yaws
+    )
+    return dict(grasp_labels.label_samples(world, samples))
+
+
+MIN_HEIGHT = 0.005
+"""Observed surface points lower than this above the grid's floor (the table) are left
+out, as VGN crops its cloud 5 mm above the table."""
+
+
+def observed_surface(
+    tsdf: F32, frame: Any, rng: np.random.Generator, count: int
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """``count`` points drawn uniformly, with replacement, from the surface ``tsdf``
+    shows (:func:`heapgrasp.perception.depth.tsdf_surface`) and their outward unit
+    normals, ``(P, 3)`` each (world): VGN's grasp points, sampled on the cloud the
+    camera reconstructed rather than on the true meshes, so that a label's approach
+    follows what the network sees. Points lower than :data:`MIN_HEIGHT` above the
+    table, or whose normal points more than slightly down (``n_z <=``
+    :data:`heapgrasp.sim.grasp_labels.MIN_NORMAL_Z`), are left out, as on the true
+    surfaces; ``P`` is 0 where none is left."""
+    from heapgrasp.perception.depth import tsdf_surface
+    from heapgrasp.sim.grasp_labels import MIN_NORMAL_Z
+
+    points, normals = tsdf_surface(tsdf, frame)
+    keep = (points[:, 2] >= frame.origin[2] + MIN_HEIGHT) & (normals[:, 2] > MIN_NORMAL_Z)
+    points, normals = points[keep], normals[keep]
+    if len(points) == 0 or count == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    pick = rng.choice(len(points), size=count, replace=True)
+    return points[pick], normals[pick]
 
 
 # --------------------------------------------------------------------------- shards

@@ -54,6 +54,8 @@ __all__ = [
     "GraspSamples",
     "best_yaw",
     "bullet_size",
+    "grasps_at",
+    "label_samples",
     "label_scene",
     "labeller",
     "panda_hand_parts",
@@ -269,18 +271,34 @@ def sample_grasps(
     s = np.sqrt(r1)
     bary = np.stack([1.0 - s, s * (1.0 - r2), s * r2], axis=1)
     point = np.einsum("pk,pkj->pj", bary, tri[pick])
-    n = normal[pick]
-    depth = rng.uniform(*DEPTH_RANGE, size=points) * gripper.finger_depth
-    tcp = point + n * (depth + gripper.palm_front)[:, None]
-    base = _frames(n)
+    return grasps_at(point, normal[pick], owner[pick], rng, yaws, gripper=gripper)
+
+
+def grasps_at(
+    points: F64,
+    normals: F64,
+    objects: npt.NDArray[np.int64],
+    rng: np.random.Generator,
+    yaws: int = 6,
+    *,
+    gripper: GripperGeometry = PANDA_HAND,
+) -> GraspSamples:
+    """VGN's grasps at given surface ``points`` ``(P, 3)`` with outward unit ``normals``
+    ``(P, 3)`` (world; ``objects`` ``(P,)`` their object ids, −1 where unknown): a depth
+    drawn per point from :data:`DEPTH_RANGE` × the finger depth, ``yaws`` yaws."""
+    n_points = len(points)
+    yaw = np.pi * np.arange(yaws) / yaws
+    depth = rng.uniform(*DEPTH_RANGE, size=n_points) * gripper.finger_depth
+    tcp = points + normals * (depth + gripper.palm_front)[:, None]
+    base = _frames(normals)
     c, s_ = np.cos(yaw), np.sin(yaw)
     rz = np.zeros((yaws, 3, 3))
     rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = c, -s_, s_, c, 1.0
-    poses = np.zeros((points, yaws, 4, 4))
+    poses = np.zeros((n_points, yaws, 4, 4))
     poses[:, :, :3, :3] = np.einsum("pij,yjk->pyik", base, rz)
     poses[:, :, :3, 3] = tcp[:, None, :]
     poses[:, :, 3, 3] = 1.0
-    return GraspSamples(point, n, owner[pick], depth, yaw, poses)
+    return GraspSamples(points, normals, objects, depth, yaw, poses)
 
 
 def best_yaw(
@@ -350,9 +368,16 @@ def label_scene(
     on), ``held`` ``(P,)`` int32 (the object held, -1 for none), ``reason`` ``(P,)``
     uint8 (:data:`REASONS`).
     """
+    samples = sample_grasps(world, rng, points, yaws, gripper=gripper)
+    return label_samples(world, samples, threads=threads)
+
+
+def label_samples(world: SimWorld, samples: GraspSamples, *, threads: int = 0) -> dict[str, Any]:
+    """``samples`` labelled on ``world`` and reduced to one grasp per point, as
+    :func:`label_scene` returns them."""
     from scipy.spatial.transform import Rotation
 
-    samples = sample_grasps(world, rng, points, yaws, gripper=gripper)
+    yaws = len(samples.yaws)
     n = len(samples.points)
     ok, width, held, reason = labeller(world).label(samples.flat(), threads=threads)
     index, label, best_width = best_yaw(ok.reshape(n, yaws), width.reshape(n, yaws))
