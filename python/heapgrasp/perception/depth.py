@@ -44,7 +44,7 @@ def tsdf_surface(values: F32, frame: GridFrame, weights: F32 | None = None) -> t
     seen = (v != 0) if weights is None else (np.asarray(weights) > 0)
     if seen.shape != v.shape:
         raise ValueError(f"weights must be {v.shape}, got {seen.shape}")
-    gradient = np.stack(np.gradient(v), axis=-1)
+    gradient = np.stack(list(np.gradient(v)), axis=-1)
     points, normals = [], []
     for axis in range(3):
         lo = [slice(None)] * 3
