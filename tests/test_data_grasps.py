@@ -132,16 +132,17 @@ def test_tsdf_grasps_are_sampled_on_the_surface_the_tsdf_shows(
     frame = GridFrame(tuple(d["origin"][0]), float(d["voxel_size"][0]) * R, R)
     points, normals = tsdf_surface(d["tsdf"][0], frame)
     approach = Rotation.from_quat(d["grasp_quat"]).as_matrix()[:, :, 2]
-    tcp = d["grasp_position"].astype(np.float64)
-    # the surface point behind the TCP: tcp + approach * s, s = depth + palm_front
-    rel = points[None, :, :] - tcp[:, None, :]
+    grasp = d["grasp_position"].astype(np.float64)
+    # the surface point ahead of the grasp's origin (the palm's face): origin +
+    # approach * depth
+    rel = points[None, :, :] - grasp[:, None, :]
     s = np.einsum("gpk,gk->gp", rel, approach)
     off_line = np.linalg.norm(rel - s[:, :, None] * approach[:, None, :], axis=2)
     nearest = np.argmin(off_line, axis=1)
-    rows = np.arange(len(tcp))
+    rows = np.arange(len(grasp))
     assert off_line[rows, nearest].max() < 1e-5
-    fd, front = PANDA_HAND.finger_depth, PANDA_HAND.palm_front
-    depth = s[rows, nearest] - front
+    fd = PANDA_HAND.finger_depth
+    depth = s[rows, nearest]
     assert (depth >= -0.1 * fd - 1e-5).all() and (depth <= 1.1 * fd + 1e-5).all()
     np.testing.assert_allclose(normals[nearest], -approach, atol=1e-4)
     assert (points[nearest, 2] >= frame.origin[2] + MIN_HEIGHT).all()

@@ -359,9 +359,11 @@ def test_grasp_planner_paper_resolution(onnx_files):
     np.testing.assert_allclose(np.linalg.norm(vols.quaternions, axis=-1), 1.0, atol=1e-5)
     # PyTorch's volumes
     quality, rotation, width = _outputs(net, torch.from_numpy(_grid(40))[None, None])
-    # ... their quality kept within hull_margin (1) voxels of the occupied grid, 0 beyond
-    near = ndimage.binary_dilation(_grid(40) > 0, iterations=planner.hull_margin)
-    assert planner.hull_margin == 1 and (~near).any()
+    # ... their quality kept within one voxel of the occupied grid (a file without
+    # grasp_origin holds TCPs, which lie in the hull), 0 beyond
+    near = ndimage.binary_dilation(_grid(40) > 0, iterations=1)
+    assert planner.grasp_origin == "tcp" and planner.tcp_offset == planner.hull_margin == 0.0
+    assert (~near).any()
     np.testing.assert_allclose(vols.quality[near], quality[0, 0].numpy()[near], atol=1e-5)
     assert (vols.quality[~near] == 0.0).all()
     np.testing.assert_allclose(vols.quaternions, rotation[0].permute(1, 2, 3, 0).numpy(), atol=1e-5)
@@ -392,6 +394,43 @@ def test_a_tsdf_networks_quality_is_kept_where_vgn_keeps_it(onnx_files, tmp_path
     quality, _, _ = _outputs(net, torch.from_numpy(grid)[None, None])
     np.testing.assert_allclose(vols.quality[valid], quality[0, 0].numpy()[valid], atol=1e-5)
     assert (vols.quality[~valid] == 0.0).all()
+
+
+def test_a_palm_origin_network_grasps_ahead_of_its_voxel(onnx_files, tmp_path):
+    """Networks trained on format-2 data hold VGN's grasp origin, the palm's face: the
+    TCP lies -palm_front ahead along the approach, grasps lie in front of the hull
+    (within 1.1 finger depths and a voxel), never deep inside it."""
+    from heapgrasp.geometry.errors import WeightsError
+    from heapgrasp.geometry.gripper import PANDA_HAND
+    from heapgrasp.nets import export_onnx
+
+    net, _ = onnx_files["grasp40"]
+    hp = {"input_kind": "occupancy", "grasp_origin": "palm"}
+    path = export_onnx(net, tmp_path / "palm.onnx", provenance={}, hparams=hp)
+    planner = NetworkGraspPlanner(path)
+    assert planner.grasp_origin == "palm"
+    assert planner.tcp_offset == pytest.approx(-PANDA_HAND.palm_front)
+    grid = np.zeros((40, 40, 40), np.float32)
+    grid[15:25, 15:25, 0:10] = 1.0  # a box on the table
+    frame = _frame(40)
+    vols = planner.predict(grid, frame)
+    assert vols.tcp_offset == planner.tcp_offset
+    occupied = grid > 0
+    margin = int(np.ceil(1.1 * PANDA_HAND.finger_depth / frame.voxel_size)) + 1
+    near = ndimage.binary_dilation(occupied, iterations=margin) & ~ndimage.binary_erosion(occupied)
+    quality, _, _ = _outputs(net, torch.from_numpy(grid)[None, None])
+    np.testing.assert_allclose(vols.quality[near], quality[0, 0].numpy()[near], atol=1e-5)
+    assert (vols.quality[~near] == 0.0).all() and (~near & occupied).any()
+    for c in select_candidates(vols, epsilon=0.0, sigma=1.0, nms_window=4):
+        centre = frame.centers(np.array([c.index]))[0]
+        np.testing.assert_allclose(c.position, centre + planner.tcp_offset * c.pose[:3, 2])
+    with pytest.raises(ValueError, match="tcp_offset must be finite"):
+        GraspVolumes(frame, vols.quality, vols.quaternions, vols.widths, tcp_offset=np.nan)
+    bad = export_onnx(
+        net, tmp_path / "bad.onnx", provenance={}, hparams={**hp, "grasp_origin": "wrist"}
+    )
+    with pytest.raises(WeightsError, match="grasp_origin is 'wrist'"):
+        NetworkGraspPlanner(bad)
 
 
 def test_grasp_planner_batch_matches_single(onnx_files):

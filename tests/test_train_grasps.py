@@ -116,7 +116,7 @@ def write_dataset(
         shards[name] = {"samples": m, "scenes": m, "dropped": 0, "grasps": count}
     manifest = {
         "format": DATA_FORMAT,
-        "version": 1,
+        "version": 2,
         "split": split,
         "root_seed": seed,
         "objects": list(objects if objects is not None else (f"{split}-object-{seed}",)),

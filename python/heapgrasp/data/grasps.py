@@ -26,8 +26,9 @@ shard re-run is identical):
    ``yaws`` yaws, labelled on the exact geometry, reduced to one grasp per point as VGN
    does. The points lie on the true meshes for ``occupancy``, and for ``tsdf`` on the
    surface the TSDF shows (:func:`observed_surface`), as VGN samples them on the cloud
-   it reconstructed; a grasp whose TCP lies outside the grid is dropped; then balanced: every
-   positive and as many negatives drawn at random (all of them where there are fewer).
+   it reconstructed; a grasp whose origin (below) lies outside the grid is dropped;
+   then balanced: every positive and as many negatives drawn at random (all of them
+   where there are fewer).
 
 The grid is ``(R, R, R)`` float32 indexed ``[i, j, k]`` along the world's x, y, z
 from ``origin`` (the grid frame of the loop; voxel ``[i, j, k]`` spans ``origin +
@@ -38,8 +39,11 @@ Layout on disk (``OUT``): as the view data (:mod:`heapgrasp.data.shards`). Each 
 holds, with leading sample axis ``S`` and grasp axis ``G``: ``occupancy`` or ``tsdf``
 (the dataset's input, ``(S, R, R, R)`` float32), ``origin`` (``(S, 3)`` float64),
 ``voxel_size`` (``(S,)`` float64), ``grasp_scene`` (``(G,)`` int64, the sample of each
-grasp), ``grasp_voxel`` (``(G, 3)`` int64, the voxel of its TCP), ``grasp_position``
-(``(G, 3)`` float32, TCP in world metres), ``grasp_quat`` (``(G, 4)`` float32, TCP
+grasp), ``grasp_voxel`` (``(G, 3)`` int64, the voxel of its position),
+``grasp_position`` (``(G, 3)`` float32, world metres: VGN's grasp origin, the centre of
+the palm's face, ``−palm_front`` behind the TCP along the approach, so that a grasp lies
+in front of the surface it grasps, where the input shows that surface; format 1 held
+the TCP), ``grasp_quat`` (``(G, 4)`` float32, grasp
 orientation ``x, y, z, w`` in the world's (= the grid's) axes), ``grasp_width``
 (``(G,)`` float32, opening in metres; the gripper's widest for a negative),
 ``grasp_label`` (``(G,)`` uint8, 1 success, 0 failure), ``scene_seed``, ``scene_index``,
@@ -77,7 +81,7 @@ __all__ = [
 F32 = npt.NDArray[np.float32]
 
 FORMAT = "heapgrasp-grasp-data"
-VERSION = 1
+VERSION = 2
 INPUTS = ("occupancy", "tsdf")
 """The network inputs a dataset can hold (:attr:`GraspDataConfig.input`)."""
 CIRCLE = 0.5
@@ -280,7 +284,11 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
         grasps = _label(
             world, rng, config, recorder.grid if config.input == "tsdf" else None, frame
         )
-    idx = frame.index(grasps["position"])
+    # VGN's grasp origin, the centre of the palm's face: in front of the surface grasped
+    palm = (
+        grasps["position"] + grasps["pose"][:, :3, 2] * pipeline.robot.gripper.geometry.palm_front
+    )
+    idx = frame.index(palm)
     inside = ((idx >= 0) & (idx < frame.resolution)).all(axis=1)
     label = grasps["label"]
     width = np.where(label == 1, grasps["width"], max_opening)
@@ -295,7 +303,7 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
         "origin": np.asarray(frame.origin, dtype=np.float64),
         "voxel_size": np.float64(frame.voxel_size),
         "grasp_voxel": idx[keep],
-        "grasp_position": grasps["position"][keep].astype(np.float32),
+        "grasp_position": palm[keep].astype(np.float32),
         "grasp_quat": grasps["quat"][keep].astype(np.float32),
         "grasp_width": width[keep].astype(np.float32),
         "grasp_label": label[keep].astype(np.uint8),

@@ -70,7 +70,7 @@ I64 = npt.NDArray[np.int64]
 
 #: ``"format"`` of a grasp dataset's manifest (:data:`heapgrasp.data.grasps.FORMAT`).
 DATA_FORMAT = "heapgrasp-grasp-data"
-_DATA_VERSION = 1
+_DATA_VERSION = 2
 #: The grids a grasp network reads: ``Ŝ≥λ`` (HEAPGrasp, no-vp) or the TSDF (VGN).
 INPUT_KINDS = ("occupancy", "tsdf")
 #: Settings of a dataset's ``config`` a network trained on it depends on: datasets

@@ -670,7 +670,8 @@ def write_outputs(
         )
         + ", float32 (B, 1, R, R, R) indexed [x, y, z]",
         "output": "quality sigmoid (B, 1, R, R, R); rotation unit quaternion x, y, z, w in "
-        "the grid's axes (B, 4, R, R, R); width opening in metres (B, 1, R, R, R)",
+        "the grid's axes (B, 4, R, R, R); width opening in metres (B, 1, R, R, R); a voxel's "
+        "grasp has its origin (the centre of the palm's face, VGN's) at the voxel's centre",
         "geometry": finite(dict(train_data.geometry)),
         "data": data_sources(train_data, val_data, test_data),
         "training": {
@@ -695,6 +696,6 @@ def write_outputs(
         net,
         out_dir / "grasp_network.onnx",
         provenance=finite(card),
-        hparams={"input_kind": config.input_kind},
+        hparams={"input_kind": config.input_kind, "grasp_origin": "palm"},
     )
     return [weights, meta, out_dir / "metrics.json", onnx_path]

@@ -15,6 +15,7 @@ the hull is an extrapolation (``docs/experiments.md``, "The grasp network").
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Sequence
 
@@ -24,13 +25,19 @@ from scipy import ndimage
 
 from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.geometry.grid import GridFrame
+from heapgrasp.geometry.gripper import PANDA_HAND
 from heapgrasp.inference import OnnxNetwork
 from heapgrasp.planning.volumes import GraspVolumes
 
-__all__ = ["INPUT_KINDS", "NetworkGraspPlanner", "tsdf_valid", "validate_grid"]
+__all__ = ["GRASP_ORIGINS", "INPUT_KINDS", "NetworkGraspPlanner", "tsdf_valid", "validate_grid"]
 
 INPUT_KINDS = ("occupancy", "tsdf")
 """The grids a grasp network reads."""
+GRASP_ORIGINS = ("palm", "tcp")
+"""Where a network's voxel holds its grasp: VGN's grasp origin (the palm's face) or the
+TCP."""
+DEPTH_MARGIN = 0.1
+"""VGN's ε: grasp depths are drawn in ``[−ε, 1 + ε]`` finger depths."""
 
 F32 = npt.NDArray[np.float32]
 
@@ -114,9 +121,27 @@ class NetworkGraspPlanner:
         execution; the predicted width is kept in the candidates): opening to the width
         + 1 cm instead took no-vp's success from 48 % to 19 % on 40 scenes
         (``docs/experiments.md``, "The grasp network")."""
-        self.hull_margin: int = 1
-        """Voxels around the occupied grid where grasp centres may lie (``occupancy``
-        input; a TSDF network's output is masked by :func:`tsdf_valid` instead)."""
+        origin = self.network.hparams.get("grasp_origin", "tcp")
+        if origin not in GRASP_ORIGINS:
+            raise WeightsError(
+                self.network.path,
+                f"hparams grasp_origin is {origin!r}, not one of {', '.join(GRASP_ORIGINS)}",
+            )
+        self.grasp_origin: str = origin
+        """Where a voxel's grasp lies (its file's ``grasp_origin``): ``"palm"``, VGN's
+        grasp frame, the centre of the palm's face (the networks trained since
+        ``heapgrasp data grasps`` format 2), or ``"tcp"`` (older files)."""
+        self.tcp_offset: float = -PANDA_HAND.palm_front if origin == "palm" else 0.0
+        """The TCP's distance ahead of a voxel along the approach (m,
+        :attr:`~heapgrasp.planning.volumes.GraspVolumes.tcp_offset`): the networks are
+        trained for the Panda hand."""
+        self.hull_margin: float = (
+            (1.0 + DEPTH_MARGIN) * PANDA_HAND.finger_depth if origin == "palm" else 0.0
+        )
+        """How far in front of the occupied grid grasps may lie, m, plus one voxel
+        (``occupancy`` input; a TSDF network's output is masked by :func:`tsdf_valid`
+        instead): a palm's face lies up to 1.1 finger depths in front of the surface it
+        grasps (VGN's sampling), a TCP within the hull."""
 
     @property
     def device(self) -> str:
@@ -172,9 +197,13 @@ class NetworkGraspPlanner:
             if self.input_kind == "tsdf":
                 valid = tsdf_valid(grids[i])
             else:
-                valid = grids[i] > 0
-                if self.hull_margin > 0 and valid.any():
-                    valid = ndimage.binary_dilation(valid, iterations=self.hull_margin)
+                occupied = grids[i] > 0
+                valid = occupied
+                if valid.any():
+                    margin = math.ceil(self.hull_margin / frames[i].voxel_size) + 1
+                    valid = ndimage.binary_dilation(occupied, iterations=margin)
+                if self.grasp_origin == "palm":  # a palm never lies deep in the hull
+                    valid &= ~ndimage.binary_erosion(occupied)
             quality[i, 0][~valid] = 0.0
         return [
             GraspVolumes(
@@ -182,6 +211,7 @@ class NetworkGraspPlanner:
                 quality=np.ascontiguousarray(quality[i, 0], dtype=np.float32),
                 quaternions=np.ascontiguousarray(rot[i], dtype=np.float32),
                 widths=np.ascontiguousarray(width[i, 0], dtype=np.float32),
+                tcp_offset=self.tcp_offset,
             )
             for i, f in enumerate(frames)
         ]

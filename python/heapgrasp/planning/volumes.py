@@ -47,8 +47,15 @@ class GraspVolumes:
     """``(R, R, R, 4)`` TCP orientation, unit quaternions ``x, y, z, w`` in world axes."""
     widths: F32
     """``(R, R, R)`` gripper opening (m)."""
+    tcp_offset: float = 0.0
+    """How far the TCP lies ahead of a voxel's centre along its grasp's approach (z), m:
+    0 where the voxels hold the TCP itself (the analytic planner); a grasp network's
+    voxels hold VGN's grasp origin, the centre of the palm's face, which lies
+    ``-palm_front`` (3.9 cm for the Panda hand) behind the TCP."""
 
     def __post_init__(self) -> None:
+        if not math.isfinite(self.tcp_offset):
+            raise ValueError(f"GraspVolumes.tcp_offset must be finite, got {self.tcp_offset}")
         r = self.frame.resolution
         for name, arr, shape in (
             ("quality", self.quality, (r, r, r)),
@@ -73,7 +80,8 @@ class GraspCandidate:
     score: float
     """Smoothed grasp score."""
     index: tuple[int, int, int]
-    """Voxel of the grasp centre."""
+    """Voxel the grasp was read from (its TCP's, or its grasp origin's:
+    :attr:`GraspVolumes.tcp_offset`)."""
 
     @property
     def position(self) -> F64:
@@ -156,7 +164,7 @@ def select_candidates(
     for k in range(len(idx)):
         pose = np.eye(4)
         pose[:3, :3] = rots[k]
-        pose[:3, 3] = centres[k]
+        pose[:3, 3] = centres[k] + volumes.tcp_offset * rots[k][:, 2]
         width = float(np.clip(volumes.widths[a[k], b[k], c[k]], 0.0, max_width))
         out.append(
             GraspCandidate(
