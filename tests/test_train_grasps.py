@@ -424,3 +424,41 @@ def test_train_grasps_command_errors_exit_2_naming_the_input(
         assert message in err, (extra, err)
         assert "Traceback" not in err
     assert not (tmp_path / "out" / "checkpoint.safetensors").exists()
+
+
+def test_a_format_1_dataset_is_rewritten_with_the_palm_origin(tmp_path: Path) -> None:
+    """scripts/grasp_data_v1_to_v2.py: positions move back along the approach by
+    -palm_front, voxels follow them, grasps leaving the grid are dropped, the rest is
+    copied; format-1 data is refused by the loader and accepted after conversion."""
+    import importlib.util
+
+    from heapgrasp.geometry.gripper import PANDA_HAND
+    from scipy.spatial.transform import Rotation
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "grasp_data_v1_to_v2.py"
+    spec = importlib.util.spec_from_file_location("grasp_data_v1_to_v2", path)
+    assert spec is not None and spec.loader is not None
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    old = write_dataset(tmp_path / "v1", n=5, shard_size=2, seed=7)
+    manifest = json.loads((old / "manifest.json").read_text())
+    manifest.update(version=1, complete=True)
+    (old / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(GraspDataError, match="version 1"):
+        load_grasp_dataset(old)
+    kept = script.convert(old, tmp_path / "v2")
+    new = load_grasp_dataset(tmp_path / "v2")
+    before = [dict(np.load(f)) for f in sorted(old.glob("shard-*.npz"))]
+    position = np.concatenate([b["grasp_position"] for b in before]).astype(np.float64)
+    quat = np.concatenate([b["grasp_quat"] for b in before])
+    moved = position + Rotation.from_quat(quat).as_matrix()[:, :, 2] * PANDA_HAND.palm_front
+    frame = GridFrame(ORIGIN, VOXEL * R, R)
+    voxel = frame.index(moved)
+    inside = ((voxel >= 0) & (voxel < R)).all(axis=1)
+    assert kept == len(new.label) == inside.sum() and 0 < kept < len(position)
+    np.testing.assert_allclose(new.position, moved[inside], atol=1e-6)
+    np.testing.assert_array_equal(new.voxel, voxel[inside])
+    np.testing.assert_array_equal(new.quat, quat[inside])
+    label = np.concatenate([b["grasp_label"] for b in before])
+    np.testing.assert_array_equal(new.label, label[inside])
+    assert script.main([str(tmp_path / "v2"), str(tmp_path / "v3")]) == 2  # not format 1

@@ -130,8 +130,9 @@ class GraspDataset:
     (the grid's minimum corner, world metres), ``voxel_size`` float64 ``(S,)``,
     ``scene_seed``, ``scene_index``, ``k`` int64 ``(S,)``, and ``offsets`` int64
     ``(S + 1,)``: scene ``s``'s grasps are rows ``offsets[s]:offsets[s + 1]`` of the
-    per-grasp arrays ``voxel`` int64 ``(G, 3)`` (the TCP's voxel), ``position`` float32
-    ``(G, 3)`` (TCP, world metres), ``quat`` float32 ``(G, 4)`` (``x, y, z, w``, world =
+    per-grasp arrays ``voxel`` int64 ``(G, 3)`` (its position's voxel), ``position``
+    float32 ``(G, 3)`` (VGN's grasp origin, the centre of the palm's face, world
+    metres), ``quat`` float32 ``(G, 4)`` (``x, y, z, w``, world =
     grid axes; z = approach, fingers close along y), ``width`` float32 ``(G,)``
     (opening, metres), ``label`` uint8 ``(G,)`` (1 success, 0 failure).
     """
