@@ -118,35 +118,36 @@ def test_labels_are_balanced_and_voxels_hold_their_grasps(
         ).all()
 
 
-def test_tsdf_grasps_are_sampled_on_the_surface_the_tsdf_shows(
-    tsdf_dataset: dict[str, Any],
+def test_grasps_are_sampled_on_the_surface_the_grid_shows(
+    dataset: tuple[Path, list[dict[str, Any]]], tsdf_dataset: dict[str, Any]
 ) -> None:
-    """VGN's sampling: each grasp's approach passes through a zero crossing of the TSDF
-    (with an outward normal not pointing down), at a depth in VGN's range."""
-    from heapgrasp.data.grasps import MIN_HEIGHT
+    """VGN's sampling: each grasp's approach passes through a point of the surface the
+    network's input shows (the TSDF's zero crossings, the hull's boundary), whose
+    outward normal does not point down, at a depth in VGN's range."""
+    from heapgrasp.data.grasps import MIN_HEIGHT, grid_surface
     from heapgrasp.geometry.gripper import PANDA_HAND
-    from heapgrasp.perception.depth import tsdf_surface
     from scipy.spatial.transform import Rotation
 
-    d = tsdf_dataset
-    frame = GridFrame(tuple(d["origin"][0]), float(d["voxel_size"][0]) * R, R)
-    points, normals = tsdf_surface(d["tsdf"][0], frame)
-    approach = Rotation.from_quat(d["grasp_quat"]).as_matrix()[:, :, 2]
-    grasp = d["grasp_position"].astype(np.float64)
-    # the surface point ahead of the grasp's origin (the palm's face): origin +
-    # approach * depth
-    rel = points[None, :, :] - grasp[:, None, :]
-    s = np.einsum("gpk,gk->gp", rel, approach)
-    off_line = np.linalg.norm(rel - s[:, :, None] * approach[:, None, :], axis=2)
-    nearest = np.argmin(off_line, axis=1)
-    rows = np.arange(len(grasp))
-    assert off_line[rows, nearest].max() < 1e-5
-    fd = PANDA_HAND.finger_depth
-    depth = s[rows, nearest]
-    assert (depth >= -0.1 * fd - 1e-5).all() and (depth <= 1.1 * fd + 1e-5).all()
-    np.testing.assert_allclose(normals[nearest], -approach, atol=1e-4)
-    assert (points[nearest, 2] >= frame.origin[2] + MIN_HEIGHT).all()
-    assert (approach[:, 2] < 0.1).all()
+    _, shards = dataset
+    for d, kind in [*((d, "occupancy") for d in shards), (tsdf_dataset, "tsdf")]:
+        frame = GridFrame(tuple(d["origin"][0]), float(d["voxel_size"][0]) * R, R)
+        points, normals = grid_surface(d[kind][0], kind, frame)
+        approach = Rotation.from_quat(d["grasp_quat"]).as_matrix()[:, :, 2]
+        grasp = d["grasp_position"].astype(np.float64)
+        # the surface point ahead of the grasp's origin (the palm's face): origin +
+        # approach * depth
+        rel = points[None, :, :] - grasp[:, None, :]
+        s = np.einsum("gpk,gk->gp", rel, approach)
+        off_line = np.linalg.norm(rel - s[:, :, None] * approach[:, None, :], axis=2)
+        nearest = np.argmin(off_line, axis=1)
+        rows = np.arange(len(grasp))
+        assert off_line[rows, nearest].max() < 1e-5, kind
+        fd = PANDA_HAND.finger_depth
+        depth = s[rows, nearest]
+        assert (depth >= -0.1 * fd - 1e-5).all() and (depth <= 1.1 * fd + 1e-5).all()
+        np.testing.assert_allclose(normals[nearest], -approach, atol=1e-4)
+        assert (points[nearest, 2] >= frame.origin[2] + MIN_HEIGHT).all()
+        assert (approach[:, 2] < 0.1).all()
 
 
 class _Spy:

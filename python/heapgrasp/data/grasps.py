@@ -24,11 +24,11 @@ shard re-run is identical):
    frames cost ~20 times the silhouettes (``docs/benchmarks.md``);
 3. the labels (:mod:`heapgrasp.sim.grasp_labels`): VGN's sampler, ``points`` surface points ×
    ``yaws`` yaws, labelled on the exact geometry, reduced to one grasp per point as VGN
-   does. The points lie on the true meshes for ``occupancy``, and for ``tsdf`` on the
-   surface the TSDF shows (:func:`observed_surface`), as VGN samples them on the cloud
-   it reconstructed; a grasp whose origin (below) lies outside the grid is dropped;
-   then balanced: every positive and as many negatives drawn at random (all of them
-   where there are fewer).
+   does. The points lie on the surface the grid shows (:func:`observed_surface`: the
+   TSDF's zero crossings, the hull's boundary), as VGN samples them on the cloud it
+   reconstructed; a grasp whose origin (below) lies outside the grid is dropped; then
+   balanced: every positive and as many negatives drawn at random (all of them where
+   there are fewer).
 
 The grid is ``(R, R, R)`` float32 indexed ``[i, j, k]`` along the world's x, y, z
 from ``origin`` (the grid frame of the loop; voxel ``[i, j, k]`` spans ``origin +
@@ -72,6 +72,8 @@ __all__ = [
     "Scene",
     "draw_scene",
     "generate",
+    "grid_surface",
+    "observed_surface",
     "read_manifest",
     "scene_sample",
     "shard_samples",
@@ -281,9 +283,7 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
             pipeline.plan()
         frame = pipeline.frame
         max_opening = pipeline.robot.gripper.geometry.max_opening
-        grasps = _label(
-            world, rng, config, recorder.grid if config.input == "tsdf" else None, frame
-        )
+        grasps = _label(world, rng, config, recorder.grid, frame)
     # VGN's grasp origin, the centre of the palm's face: in front of the surface grasped
     palm = (
         grasps["position"] + grasps["pose"][:, :3, 2] * pipeline.robot.gripper.geometry.palm_front
@@ -317,19 +317,17 @@ def _label(
     world: Any,
     rng: np.random.Generator,
     config: GraspDataConfig,
-    tsdf: F32 | None,
+    grid: F32,
     frame: Any,
 ) -> dict[str, Any]:
-    """VGN's grasps of the scene, labelled on the exact geometry and reduced to one per
-    point: ``config.points`` points of the true surfaces, or with a ``tsdf`` of the
-    surface it shows (:func:`observed_surface`). ``position`` ``(N, 3)``, ``quat``
-    ``(N, 4)`` (x, y, z, w), ``width`` ``(N,)`` (the widest opening for a failure),
-    ``label`` ``(N,)`` (1 success, 0 failure)."""
+    """VGN's grasps of the scene at ``config.points`` points of the surface ``grid``
+    shows (:func:`observed_surface`), labelled on the exact geometry and reduced to one
+    per point: ``position`` ``(N, 3)``, ``quat`` ``(N, 4)`` (x, y, z, w), ``width``
+    ``(N,)`` (the widest opening for a failure), ``label`` ``(N,)`` (1 success, 0
+    failure)."""
     from heapgrasp.sim import grasp_labels
 
-    if tsdf is None:
-        return dict(grasp_labels.label_scene(world, rng, points=config.points, yaws=config.yaws))
-    points, normals = observed_surface(tsdf, frame, rng, config.points)
+    points, normals = observed_surface(grid, config.input, frame, rng, config.points)
     samples = grasp_labels.grasps_at(
         points, normals, np.full(len(points), -1, np.int64), rng, config.yaws
     )
@@ -341,23 +339,42 @@ MIN_HEIGHT = 0.005
 out, as VGN crops its cloud 5 mm above the table."""
 
 
-def observed_surface(
-    tsdf: F32, frame: Any, rng: np.random.Generator, count: int
+def grid_surface(
+    grid: F32, input_kind: str, frame: Any
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """``count`` points drawn uniformly, with replacement, from the surface ``tsdf``
-    shows (:func:`heapgrasp.perception.depth.tsdf_surface`) and their outward unit
-    normals, ``(P, 3)`` each (world): VGN's grasp points, sampled on the cloud the
-    camera reconstructed rather than on the true meshes, so that a label's approach
-    follows what the network sees. Points lower than :data:`MIN_HEIGHT` above the
+    """The surface ``grid`` shows, where VGN's grasp points may lie, and its outward unit
+    normals, ``(P, 3)`` each (world).
+
+    The surface is a zero crossing (:func:`heapgrasp.perception.depth.tsdf_surface`) of
+    the TSDF for ``input_kind = "tsdf"``, and for ``"occupancy"`` of ``0.5 −`` the
+    occupancy smoothed by a one-voxel Gaussian (the hull's boundary, phantom parts
+    included, with smooth normals). Points lower than :data:`MIN_HEIGHT` above the
     table, or whose normal points more than slightly down (``n_z <=``
     :data:`heapgrasp.sim.grasp_labels.MIN_NORMAL_Z`), are left out, as on the true
-    surfaces; ``P`` is 0 where none is left."""
+    surfaces."""
+    from scipy import ndimage
+
     from heapgrasp.perception.depth import tsdf_surface
     from heapgrasp.sim.grasp_labels import MIN_NORMAL_Z
 
-    points, normals = tsdf_surface(tsdf, frame)
+    if input_kind == "tsdf":
+        points, normals = tsdf_surface(grid, frame)
+    else:
+        smooth = ndimage.gaussian_filter((np.asarray(grid) > 0).astype(np.float64), 1.0)
+        field = (0.5 - smooth).astype(np.float32)
+        points, normals = tsdf_surface(field, frame, np.ones_like(field))
     keep = (points[:, 2] >= frame.origin[2] + MIN_HEIGHT) & (normals[:, 2] > MIN_NORMAL_Z)
-    points, normals = points[keep], normals[keep]
+    return points[keep], normals[keep]
+
+
+def observed_surface(
+    grid: F32, input_kind: str, frame: Any, rng: np.random.Generator, count: int
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """``count`` points drawn uniformly, with replacement, from :func:`grid_surface` and
+    their normals, ``(P, 3)`` each (world; ``P`` is 0 where the grid shows no surface):
+    VGN's grasp points, sampled on what the camera reconstructed rather than on the
+    true meshes, so that a label's approach follows what the network sees."""
+    points, normals = grid_surface(grid, input_kind, frame)
     if len(points) == 0 or count == 0:
         return np.zeros((0, 3)), np.zeros((0, 3))
     pick = rng.choice(len(points), size=count, replace=True)
