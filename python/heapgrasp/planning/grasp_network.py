@@ -107,12 +107,7 @@ class NetworkGraspPlanner:
                 f"the grasp network reads {self.network.input.shape[1]} channels; "
                 f"heapgrasp feeds 1 (the grid)",
             )
-        kind = self.network.hparams.get("input_kind", "occupancy")
-        if kind not in INPUT_KINDS:
-            raise WeightsError(
-                self.network.path,
-                f"hparams input_kind is {kind!r}, not one of {', '.join(INPUT_KINDS)}",
-            )
+        kind = self._hparam("input_kind", "occupancy", INPUT_KINDS)
         self.input_kind: str = kind
         """The grid the network was trained on (its file's ``input_kind``): ``"occupancy"``
         (``Ŝ≥λ``, HEAPGrasp and no-vp) or ``"tsdf"`` (the VGN baseline)."""
@@ -121,12 +116,7 @@ class NetworkGraspPlanner:
         execution; the predicted width is kept in the candidates): opening to the width
         + 1 cm instead took no-vp's success from 48 % to 19 % on 40 scenes
         (``docs/experiments.md``, "The grasp network")."""
-        origin = self.network.hparams.get("grasp_origin", "tcp")
-        if origin not in GRASP_ORIGINS:
-            raise WeightsError(
-                self.network.path,
-                f"hparams grasp_origin is {origin!r}, not one of {', '.join(GRASP_ORIGINS)}",
-            )
+        origin = self._hparam("grasp_origin", "tcp", GRASP_ORIGINS)
         self.grasp_origin: str = origin
         """Where a voxel's grasp lies (its file's ``grasp_origin``): ``"palm"``, VGN's
         grasp frame, the centre of the palm's face (the networks trained since
@@ -142,6 +132,17 @@ class NetworkGraspPlanner:
         (``occupancy`` input; a TSDF network's output is masked by :func:`tsdf_valid`
         instead): a palm's face lies up to 1.1 finger depths in front of the surface it
         grasps (VGN's sampling), a TCP within the hull."""
+
+    def _hparam(self, name: str, default: str, choices: tuple[str, ...]) -> str:
+        """The file's hyper-parameter ``name`` (``default`` where it has none), one of
+        ``choices``; a :class:`WeightsError` naming the file otherwise."""
+        value = self.network.hparams.get(name, default)
+        if value not in choices:
+            raise WeightsError(
+                self.network.path,
+                f"hparams {name} is {value!r}, not one of {', '.join(choices)}",
+            )
+        return str(value)
 
     @property
     def device(self) -> str:
