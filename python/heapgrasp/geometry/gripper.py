@@ -12,7 +12,11 @@ from dataclasses import dataclass
 
 from heapgrasp.geometry.checks import finite, positive
 
-__all__ = ["PANDA_HAND", "GripperGeometry"]
+__all__ = ["GRASP_DEPTH_RANGE", "PANDA_HAND", "GripperGeometry"]
+
+#: VGN's grasp depths, in finger depths: how far in front of the surface point a grasp's
+#: palm face is placed (``[−ε, 1 + ε]``, ε = 0.1), for its data and its detection.
+GRASP_DEPTH_RANGE = (-0.1, 1.1)
 
 
 @dataclass(frozen=True)

@@ -7,10 +7,11 @@ PyTorch is never imported.
 
 As VGN's detection masks out the voxels too far from the measured surface, the planner
 zeroes the quality of a TSDF network outside VGN's mask (:func:`tsdf_valid`), and that of
-an occupancy network farther than :attr:`NetworkGraspPlanner.hull_margin` voxels from
-the occupied grid: the occupancy network is trained only where grasps were sampled
-(near true surfaces, which lie inside the hull), so its quality in the free space above
-the hull is an extrapolation (``docs/experiments.md``, "The grasp network").
+an occupancy network outside the region its grasps were labelled in: within
+:attr:`NetworkGraspPlanner.hull_margin` and a voxel of the occupied grid, and, for a
+network whose voxels hold the palm's face (``grasp_origin = "palm"``), not deep inside
+it; elsewhere its quality is an extrapolation (``docs/experiments.md``, "The grasp
+network").
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from scipy import ndimage
 
 from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.geometry.grid import GridFrame
-from heapgrasp.geometry.gripper import PANDA_HAND
+from heapgrasp.geometry.gripper import GRASP_DEPTH_RANGE, PANDA_HAND
 from heapgrasp.inference import OnnxNetwork
 from heapgrasp.planning.volumes import GraspVolumes
 
@@ -36,8 +37,6 @@ INPUT_KINDS = ("occupancy", "tsdf")
 GRASP_ORIGINS = ("palm", "tcp")
 """Where a network's voxel holds its grasp: VGN's grasp origin (the palm's face) or the
 TCP."""
-DEPTH_MARGIN = 0.1
-"""VGN's ε: grasp depths are drawn in ``[−ε, 1 + ε]`` finger depths."""
 
 F32 = npt.NDArray[np.float32]
 
@@ -126,7 +125,7 @@ class NetworkGraspPlanner:
         :attr:`~heapgrasp.planning.volumes.GraspVolumes.tcp_offset`): the networks are
         trained for the Panda hand."""
         self.hull_margin: float = (
-            (1.0 + DEPTH_MARGIN) * PANDA_HAND.finger_depth if origin == "palm" else 0.0
+            GRASP_DEPTH_RANGE[1] * PANDA_HAND.finger_depth if origin == "palm" else 0.0
         )
         """How far in front of the occupied grid grasps may lie, m, plus one voxel
         (``occupancy`` input; a TSDF network's output is masked by :func:`tsdf_valid`

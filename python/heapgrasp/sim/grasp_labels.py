@@ -38,7 +38,7 @@ import numpy.typing as npt
 import pybullet as pb
 
 from heapgrasp import GraspLabeller
-from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
+from heapgrasp.geometry.gripper import GRASP_DEPTH_RANGE, PANDA_HAND, GripperGeometry
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE
 from heapgrasp.sim.fingers import FINGER_FRICTION, MAX_OPENING, MIN_HELD_WIDTH
 from heapgrasp.sim.gripper import FINGER_JOINT_Z, PANDA_MESHES, TCP_OFFSET
@@ -93,7 +93,7 @@ APPROACH_LAG = 0.0015
 MIN_NORMAL_Z = -0.1
 
 #: VGN's grasp depth range, in finger depths.
-DEPTH_RANGE = (-0.1, 1.1)
+DEPTH_RANGE = GRASP_DEPTH_RANGE
 
 
 def table_top(world: SimWorld) -> float:
