@@ -63,10 +63,11 @@ from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.perception.segmenters import IdealSegmenter, MaskSource, NoisySegmenter, Segmenter
 from heapgrasp.perception.silhouette import SilhouettePerception
 from heapgrasp.planning.critic import DEFAULT_CRITIC, GraspCritic
+from heapgrasp.planning.hull_check import HullCheck
 from heapgrasp.planning.selection import select_next_waypoint, select_target, top_scoring
 from heapgrasp.planning.views import OracleViewScorer, ViewContext, ViewScorer, fixed_waypoints
 from heapgrasp.planning.volumes import GraspCandidate, GraspPlanner, select_candidates
-from heapgrasp.robot.grasping import Grasp, GraspOutcome
+from heapgrasp.robot.grasping import PREGRASP_DISTANCE, Grasp, GraspOutcome
 from heapgrasp.robot.interfaces import Robot, SceneTruth, UnreachableError
 
 if TYPE_CHECKING:
@@ -87,8 +88,6 @@ __all__ = [
 
 F64 = npt.NDArray[np.float64]
 
-#: Distance of the pre-grasp pose behind the grasp along its approach axis (m).
-PREGRASP_DISTANCE = 0.05
 #: Silhouettes per hypothetical path when the oracle scores a candidate (eq. 14), evenly
 #: spaced along the path (``docs/experiments.md`` measures 10 against 40).
 ORACLE_FRAMES = 10
@@ -225,12 +224,21 @@ class Pipeline:
             eps = critic.candidate_epsilon
         else:
             eps = getattr(self.grasp_planner, "epsilon", 0.8)
+        gripper = self.robot.gripper.geometry
+        reject = None
+        if cfg.grasp_planner == "network" and isinstance(self.perception, SilhouettePerception):
+            # A network's regressed poses, unlike the analytic planner's, are not checked
+            # against the hull it saw.
+            reject = HullCheck(
+                grid > 0, self.frame, gripper=gripper, pregrasp_distance=PREGRASP_DISTANCE
+            )
         cands = select_candidates(
             volumes,
             epsilon=float(eps),
             sigma=float(sigma),
             nms_window=cfg.nms_window,
-            max_width=self.robot.gripper.geometry.max_opening,
+            max_width=gripper.max_opening,
+            reject=reject,
         )
         if self.failed_grasps and cfg.failed_grasp_radius > 0.0:
             failed = np.asarray(self.failed_grasps)

@@ -14,6 +14,7 @@ along y (as VGN).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -139,11 +140,17 @@ def select_candidates(
     sigma: float = 1.0,
     nms_window: int = 4,
     max_width: float = PANDA_HAND.max_opening,
+    reject: Callable[[F64], npt.NDArray[np.bool_]] | None = None,
 ) -> list[GraspCandidate]:
     """``P_grasp,ε`` of eq. 15: smooth the quality (3-D Gaussian, ``sigma`` voxels; 0 =
     none), keep voxels with score ``>= epsilon`` that are the maximum of their
     ``nms_window``-wide neighbourhood, best first. Widths are clipped to
-    ``[0, max_width]``."""
+    ``[0, max_width]``.
+
+    ``reject``: maps ``(N, 4, 4)`` TCP poses to ``(N,)`` bools, True for a grasp to drop
+    (:class:`~heapgrasp.planning.hull_check.HullCheck`). A dropped voxel leaves the
+    smoothed scores and NMS runs again, so a neighbour it suppressed can take its place;
+    this repeats until every maximum is kept."""
     if not (math.isfinite(epsilon) and 0.0 <= epsilon <= 1.0):
         raise ValueError(f"epsilon must be in [0, 1], got {epsilon}")
     if not (math.isfinite(sigma) and sigma >= 0.0):
@@ -154,17 +161,30 @@ def select_candidates(
     smooth = gaussian_filter3d(quality, sigma) if sigma > 0 else quality
     # Smoothing must not create grasps where the planner found none.
     smooth = np.where(quality > 0, smooth, np.float32(0.0)).astype(np.float32)
-    idx = nms3d(np.ascontiguousarray(smooth), float(epsilon), nms_window)
-    if len(idx) == 0:
-        return []
-    a, b, c = idx[:, 0], idx[:, 1], idx[:, 2]
-    rots = quaternion_to_matrix(volumes.quaternions[a, b, c])
-    centres = volumes.frame.centers(idx)
+    kept = np.zeros(quality.shape, dtype=bool)  # maxima ``reject`` already let through
+    while True:
+        idx = nms3d(np.ascontiguousarray(smooth), float(epsilon), nms_window)
+        if len(idx) == 0:
+            return []
+        a, b, c = idx[:, 0], idx[:, 1], idx[:, 2]
+        rots = quaternion_to_matrix(volumes.quaternions[a, b, c])
+        poses = np.tile(np.eye(4), (len(idx), 1, 1))
+        poses[:, :3, :3] = rots
+        poses[:, :3, 3] = volumes.frame.centers(idx) + volumes.tcp_offset * rots[:, :, 2]
+        if reject is None:
+            break
+        new = ~kept[a, b, c]
+        if not new.any():
+            break
+        dropped = np.asarray(reject(poses[new]), dtype=bool)
+        if dropped.shape != (int(new.sum()),):
+            raise ValueError(f"reject returned shape {dropped.shape} for {new.sum()} poses")
+        checked = idx[new]
+        kept[tuple(checked[~dropped].T)] = True
+        smooth[tuple(checked[dropped].T)] = 0.0
     out = []
     for k in range(len(idx)):
-        pose = np.eye(4)
-        pose[:3, :3] = rots[k]
-        pose[:3, 3] = centres[k] + volumes.tcp_offset * rots[k][:, 2]
+        pose = poses[k].copy()
         width = float(np.clip(volumes.widths[a[k], b[k], c[k]], 0.0, max_width))
         out.append(
             GraspCandidate(

@@ -1,0 +1,124 @@
+"""Grasps checked against the silhouette hull: what a grasp network's pose cannot do.
+
+Carving keeps every voxel that every view's silhouette covers, so inside the volume the
+views saw the hull ``Ŝ≥λ`` contains the objects (HEAPGrasp eq. 10). Two facts follow
+for a parallel-jaw grasp executed as VGN executes it (pre-grasp, straight approach along
+the TCP's z, close):
+
+- a hand whose approach is clear of the hull and the table is clear of the objects;
+- fingers that close on nothing of the hull close on nothing.
+
+A grasp network (:mod:`heapgrasp.planning.grasp_network`) regresses one orientation per
+voxel, and where grasps of several orientations succeed at one place (from above and
+from the side) the regression falls between them, into poses whose palm or fingers run
+into the object. :class:`HullCheck` rejects the poses whose hand meets the hull or whose
+fingers close on none of it, with the exact-geometry labeller of the Rust core
+(:class:`heapgrasp.GraspLabeller`, issue 38 §1) run on the hull instead of true meshes:
+each column run of occupied voxels is one box. A pose it rejects for touching the hull
+may have been clear of the object itself (the hull is larger: roofs, the volume between
+objects no view saw into); a pose it keeps may still fail for contacts outside the
+friction cone, which it does not judge on voxel faces.
+
+The analytic planner (:mod:`heapgrasp.planning.antipodal`) makes the same collision
+check on its own lattice; :func:`~heapgrasp.planning.volumes.select_candidates` applies
+this one to a network's candidates (its ``reject`` argument).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import numpy.typing as npt
+
+from heapgrasp import GraspLabeller
+from heapgrasp.geometry.grid import GridFrame
+from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
+
+__all__ = ["HullCheck", "column_boxes"]
+
+F64 = npt.NDArray[np.float64]
+
+#: Boxes per labeller object (:class:`heapgrasp.GraspLabeller` takes at most 4096 pieces
+#: per object); a hull with more runs is split over several objects.
+_PIECES_PER_OBJECT = 4096
+
+# :data:`heapgrasp.GraspLabeller.reasons` codes that reject a grasp.
+_COLLISION = 1
+_EMPTY = 2
+
+
+def column_boxes(occupied: npt.ArrayLike, frame: GridFrame) -> list[F64]:
+    """Occupied voxels as boxes: one per run of occupied voxels along z in each
+    ``(x, y)`` column, each its ``(8, 3)`` world corners."""
+    occ = np.asarray(occupied, dtype=bool)
+    r = frame.resolution
+    if occ.shape != (r, r, r):
+        raise ValueError(f"occupied must have shape {(r, r, r)}, got {occ.shape}")
+    padded = np.zeros((r, r, r + 2), dtype=np.int8)
+    padded[:, :, 1:-1] = occ
+    step = np.diff(padded, axis=2)
+    starts = np.argwhere(step == 1)  # sorted by (x, y, z): runs pair up in order
+    stops = np.argwhere(step == -1)[:, 2]
+    v = frame.voxel_size
+    origin = np.asarray(frame.origin, dtype=np.float64)
+    lo = origin + starts.astype(np.float64) * v
+    hi = origin + np.column_stack([starts[:, :2] + 1, stops]).astype(np.float64) * v
+    corner = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=bool)
+    boxes = np.where(corner[None], hi[:, None, :], lo[:, None, :])
+    return list(np.ascontiguousarray(boxes))
+
+
+class HullCheck:
+    """Rejects grasps whose hand meets the hull or closes on none of it (module doc).
+
+    Parameters
+    ----------
+    occupied
+        ``(R, R, R)`` bool: the hull (the grid the planner was given, ``> 0``).
+    frame
+        Where the grid lies.
+    gripper
+        The hand, as boxes (:class:`~heapgrasp.geometry.gripper.GripperGeometry`).
+    table_z
+        Height of the table top (m); the hand must stay above it.
+    pregrasp_distance
+        How far back along the approach the hand starts (m).
+    """
+
+    def __init__(
+        self,
+        occupied: npt.ArrayLike,
+        frame: GridFrame,
+        *,
+        gripper: GripperGeometry = PANDA_HAND,
+        table_z: float = 0.0,
+        pregrasp_distance: float = 0.05,
+    ) -> None:
+        self.labeller = GraspLabeller(
+            dataclasses.asdict(gripper),
+            table_z=table_z,
+            friction=1.0,  # contact normals on voxel faces are not judged
+            pregrasp_distance=pregrasp_distance,
+            hand_margin=0.0,
+            object_margin=0.0,
+            min_width=0.0,
+        )
+        boxes = column_boxes(occupied, frame)
+        for k in range(0, len(boxes), _PIECES_PER_OBJECT):
+            self.labeller.add_object(k, np.eye(4), boxes[k : k + _PIECES_PER_OBJECT])
+        self.boxes = len(boxes)
+
+    def __call__(self, tcp2world: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+        """``(N,)`` True where the grasp at TCP pose ``tcp2world[i]`` (``(N, 4, 4)``, z
+        the approach, fingers closing along y) is rejected."""
+        poses = np.ascontiguousarray(tcp2world, dtype=np.float64)
+        if poses.ndim != 3 or poses.shape[1:] != (4, 4):
+            raise ValueError(f"tcp2world must be (N, 4, 4), got {poses.shape}")
+        if len(poses) == 0:
+            return np.zeros(0, dtype=bool)
+        reason = np.asarray(self.labeller.label(poses)[3])
+        return np.isin(reason, (_COLLISION, _EMPTY))
+
+    def __repr__(self) -> str:
+        return f"HullCheck(boxes={self.boxes})"
