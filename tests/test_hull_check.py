@@ -113,3 +113,18 @@ def test_select_candidates_lets_a_suppressed_neighbour_replace_a_rejected_maximu
     assert everything == []
     with pytest.raises(ValueError, match="reject returned shape"):
         select_candidates(vols, epsilon=0.5, sigma=0.0, reject=lambda p: np.zeros(1, bool))
+
+
+def test_the_hand_keeps_half_a_voxel_from_the_hull():
+    # Carving keeps a voxel when its centre is inside the silhouettes: an object may
+    # reach half a voxel (3.75 mm) beyond the boxes.
+    v = FRAME.voxel_size
+    target = _block((18, 12, 0), (22, 28, 8))
+    grasp = _top_down(0.15, 0.15, 8 * v - 0.02 + PANDA_HAND.finger_tip)[None]
+    # the outer face of the fingers' base, which closes along world x
+    outer = 0.15 + PANDA_HAND.max_opening / 2 + PANDA_HAND.base_thickness
+    for first, gap, rejected in ((29, 29 * v - outer, True), (30, 30 * v - outer, False)):
+        # as high as the fingers' base part, 1 cm below the palm
+        neighbour = _block((first, 8, 0), (first + 4, 32, 10))
+        assert 0.0 < gap < v / 2 if rejected else gap > v / 2
+        assert HullCheck(target | neighbour, FRAME)(grasp)[0] == rejected

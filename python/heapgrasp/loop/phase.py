@@ -228,9 +228,13 @@ class Pipeline:
         reject = None
         if cfg.grasp_planner == "network" and isinstance(self.perception, SilhouettePerception):
             # A network's regressed poses, unlike the analytic planner's, are not checked
-            # against the hull it saw.
+            # against the hull; against Ŝ≥λ before its roofs were trimmed, which holds
+            # the objects (the trimmed grid the network reads need not).
             reject = HullCheck(
-                grid > 0, self.frame, gripper=gripper, pregrasp_distance=PREGRASP_DISTANCE
+                self.perception.grid.high_confidence(cfg.lam) > 0,
+                self.frame,
+                gripper=gripper,
+                pregrasp_distance=PREGRASP_DISTANCE,
             )
         cands = select_candidates(
             volumes,

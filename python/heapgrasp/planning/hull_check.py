@@ -14,7 +14,10 @@ from the side) the regression falls between them, into poses whose palm or finge
 into the object. :class:`HullCheck` rejects the poses whose hand meets the hull or whose
 fingers close on none of it, with the exact-geometry labeller of the Rust core
 (:class:`heapgrasp.GraspLabeller`, issue 38 §1) run on the hull instead of true meshes:
-each column run of occupied voxels is one box. A pose it rejects for touching the hull
+each column run of occupied voxels is one box. Carving keeps a voxel when its centre
+projects inside every silhouette (:mod:`heapgrasp.perception.silhouette`), so an object
+may reach up to half a voxel beyond the boxes: the hand must stay that far from them. A
+pose it rejects for touching the hull
 may have been clear of the object itself (the hull is larger: roofs, the volume between
 objects no view saw into); a pose it keeps may still fail for contacts outside the
 friction cone, which it does not judge on voxel faces.
@@ -101,7 +104,7 @@ class HullCheck:
             friction=1.0,  # contact normals on voxel faces are not judged
             pregrasp_distance=pregrasp_distance,
             hand_margin=0.0,
-            object_margin=0.0,
+            object_margin=frame.voxel_size / 2,  # carving tests voxel centres
             min_width=0.0,
         )
         boxes = column_boxes(occupied, frame)
