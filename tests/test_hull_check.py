@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.geometry.gripper import PANDA_HAND
-from heapgrasp.planning.hull_check import HullCheck, column_boxes
+from heapgrasp.planning.hull_check import HullCheck, hull_boxes
 from heapgrasp.planning.volumes import GraspVolumes, select_candidates
 
 FRAME = GridFrame((0.0, 0.0, 0.0), 0.3, 40)  # 7.5 mm voxels, the table at z = 0
@@ -30,27 +30,47 @@ def _top_down(x: float, y: float, z: float, yaw: float = 0.0) -> np.ndarray:
     return pose
 
 
-def test_column_boxes_are_the_runs_of_each_column():
+def test_hull_boxes_are_the_runs_of_each_column_merged():
     occ = np.zeros((40, 40, 40), dtype=bool)
     occ[3, 4, 0:2] = True
     occ[3, 4, 5:9] = True
     occ[7, 1, 39] = True
-    boxes = column_boxes(occ, FRAME)
+    boxes = hull_boxes(occ, FRAME)
     v = FRAME.voxel_size
     spans = sorted((tuple(b.min(0) / v), tuple(b.max(0) / v)) for b in boxes)
     expected = [((3, 4, 0), (4, 5, 2)), ((3, 4, 5), (4, 5, 9)), ((7, 1, 39), (8, 2, 40))]
     assert len(boxes) == 3 and all(b.shape == (8, 3) for b in boxes)
     np.testing.assert_allclose(np.array(spans, dtype=float), np.array(expected, dtype=float))
-    assert column_boxes(np.zeros((40, 40, 40), bool), FRAME) == []
+    assert hull_boxes(np.zeros((40, 40, 40), bool), FRAME) == []
+    # Merged across columns: a block is one box, a step two.
+    assert len(hull_boxes(_block((5, 6, 0), (9, 12, 3)), FRAME)) == 1
+    assert (
+        len(hull_boxes(_block((5, 6, 0), (9, 12, 3)) | _block((5, 6, 0), (7, 12, 5)), FRAME)) == 2
+    )
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_hull_boxes_cover_exactly_the_occupied_voxels(seed):
+    rng = np.random.default_rng(seed)
+    occ = rng.random((40, 40, 40)) < (0.2, 0.5, 0.9)[seed]
+    occ[:, :, 20:] &= rng.random((40, 40, 20)) < 0.5
+    v = FRAME.voxel_size
+    count = np.zeros(occ.shape, dtype=int)
+    boxes = hull_boxes(occ, FRAME)
+    for b in boxes:
+        lo = np.round(b.min(0) / v).astype(int)
+        hi = np.round(b.max(0) / v).astype(int)
+        count[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]] += 1
+    np.testing.assert_array_equal(count, occ.astype(int))  # every voxel once, no more
     with pytest.raises(ValueError, match="occupied must have shape"):
-        column_boxes(np.zeros((4, 4, 4), bool), FRAME)
+        hull_boxes(np.zeros((4, 4, 4), bool), FRAME)
 
 
 def test_hull_check_keeps_a_clear_grasp_and_rejects_collisions_and_empty_closings():
     # A block 3 cm (x) by 12 cm (y), 6 cm tall, centred at (0.15, 0.15).
     occ = _block((18, 12, 0), (22, 28, 8))
     check = HullCheck(occ, FRAME, gripper=PANDA_HAND, pregrasp_distance=0.05)
-    assert check.boxes == 4 * 16
+    assert check.boxes == 1
     top = 8 * FRAME.voxel_size
     tips_2cm_down = top - 0.02 + PANDA_HAND.finger_tip  # the TCP's height for it
     grasps = np.stack(
@@ -88,7 +108,7 @@ def _volumes(quality: np.ndarray) -> GraspVolumes:
     )
 
 
-def test_select_candidates_lets_a_suppressed_neighbour_replace_a_rejected_maximum():
+def test_a_rejected_grasp_suppresses_no_neighbour():
     quality = np.zeros((40, 40, 40), np.float32)
     quality[10, 10, 10] = 1.0
     quality[11, 10, 10] = 0.9  # suppressed by its neighbour
@@ -106,7 +126,7 @@ def test_select_candidates_lets_a_suppressed_neighbour_replace_a_rejected_maximu
 
     kept = select_candidates(vols, epsilon=0.5, sigma=0.0, nms_window=4, reject=reject)
     assert [c.index for c in kept] == [(30, 30, 30), (11, 10, 10)]
-    assert calls == [2, 1]  # each maximum is checked once
+    assert calls == [3]  # every voxel above ε, once
     everything = select_candidates(
         vols, epsilon=0.5, sigma=0.0, reject=lambda p: np.ones(len(p), bool)
     )
@@ -128,3 +148,24 @@ def test_the_hand_keeps_half_a_voxel_from_the_hull():
         neighbour = _block((first, 8, 0), (first + 4, 32, 10))
         assert 0.0 < gap < v / 2 if rejected else gap > v / 2
         assert HullCheck(target | neighbour, FRAME)(grasp)[0] == rejected
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_select_candidates_finds_the_peaks_of_the_whole_grid(seed):
+    # select_candidates runs NMS on the cube around the voxels above ε only.
+    from heapgrasp import nms3d
+
+    rng = np.random.default_rng(seed)
+    quality = np.zeros((40, 40, 40), np.float32)
+    lo = rng.integers(0, 36, 3)
+    hi = np.minimum(lo + rng.integers(1, 15, 3), 40)
+    quality[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]] = rng.random(tuple(hi - lo))
+    quality[rng.random(quality.shape) < 0.02] = 0.3  # below ε, everywhere
+    quality[quality > 0.9] = 0.95  # ties
+    window = int(rng.integers(1, 6))
+    got = [
+        c.index
+        for c in select_candidates(_volumes(quality), epsilon=0.6, sigma=0.0, nms_window=window)
+    ]
+    want = [tuple(int(x) for x in i) for i in nms3d(quality, 0.6, window)]
+    assert got == want

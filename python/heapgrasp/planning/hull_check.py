@@ -14,7 +14,7 @@ from the side) the regression falls between them, into poses whose palm or finge
 into the object. :class:`HullCheck` rejects the poses whose hand meets the hull or whose
 fingers close on none of it, with the exact-geometry labeller of the Rust core
 (:class:`heapgrasp.GraspLabeller`, issue 38 §1) run on the hull instead of true meshes:
-each column run of occupied voxels is one box. Carving keeps a voxel when its centre
+the occupied voxels as a few boxes (:func:`hull_boxes`). Carving keeps a voxel when its centre
 projects inside every silhouette (:mod:`heapgrasp.perception.silhouette`), so an object
 may reach up to half a voxel beyond the boxes: the hand must stay that far from them. A
 pose it rejects for touching the hull
@@ -38,7 +38,7 @@ from heapgrasp import GraspLabeller
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
 
-__all__ = ["HullCheck", "column_boxes"]
+__all__ = ["HullCheck", "hull_boxes"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -51,25 +51,48 @@ _COLLISION = 1
 _EMPTY = 2
 
 
-def column_boxes(occupied: npt.ArrayLike, frame: GridFrame) -> list[F64]:
-    """Occupied voxels as boxes: one per run of occupied voxels along z in each
-    ``(x, y)`` column, each its ``(8, 3)`` world corners."""
+def _merge_runs(boxes: npt.NDArray[np.int64], axis: int) -> npt.NDArray[np.int64]:
+    """Boxes ``(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z)`` (voxel indices, ``hi`` exclusive)
+    that are one voxel thick along ``axis`` and touch along it with the same extent on
+    the other axes, merged into one."""
+    others = [a for a in range(3) if a != axis]
+    keys = [boxes[:, axis]] + [boxes[:, c] for a in others for c in (a, a + 3)]
+    order = np.lexsort(keys)  # by the other extents, then along the axis (the last key first)
+    b = boxes[order]
+    same = np.ones(len(b), dtype=bool)
+    same[0] = False
+    for a in others:
+        same[1:] &= (b[1:, a] == b[:-1, a]) & (b[1:, a + 3] == b[:-1, a + 3])
+    same[1:] &= b[1:, axis] == b[:-1, axis + 3]
+    first = np.flatnonzero(~same)
+    out = b[first].copy()
+    out[:, axis + 3] = np.maximum.reduceat(b[:, axis + 3], first)
+    return out
+
+
+def hull_boxes(occupied: npt.ArrayLike, frame: GridFrame) -> list[F64]:
+    """Occupied voxels as few boxes whose union they are: the runs along z of each
+    ``(x, y)`` column, runs of equal extent in neighbouring columns merged along y, then
+    those along x; each box as its ``(8, 3)`` world corners."""
     occ = np.asarray(occupied, dtype=bool)
     r = frame.resolution
     if occ.shape != (r, r, r):
         raise ValueError(f"occupied must have shape {(r, r, r)}, got {occ.shape}")
+    if not occ.any():
+        return []
     padded = np.zeros((r, r, r + 2), dtype=np.int8)
     padded[:, :, 1:-1] = occ
     step = np.diff(padded, axis=2)
     starts = np.argwhere(step == 1)  # sorted by (x, y, z): runs pair up in order
     stops = np.argwhere(step == -1)[:, 2]
+    boxes = np.column_stack([starts, starts[:, :2] + 1, stops]).astype(np.int64)
+    boxes = _merge_runs(_merge_runs(boxes, 1), 0)
     v = frame.voxel_size
     origin = np.asarray(frame.origin, dtype=np.float64)
-    lo = origin + starts.astype(np.float64) * v
-    hi = origin + np.column_stack([starts[:, :2] + 1, stops]).astype(np.float64) * v
+    lo = origin + boxes[:, :3].astype(np.float64) * v
+    hi = origin + boxes[:, 3:].astype(np.float64) * v
     corner = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=bool)
-    boxes = np.where(corner[None], hi[:, None, :], lo[:, None, :])
-    return list(np.ascontiguousarray(boxes))
+    return list(np.ascontiguousarray(np.where(corner[None], hi[:, None, :], lo[:, None, :])))
 
 
 class HullCheck:
@@ -107,7 +130,7 @@ class HullCheck:
             object_margin=frame.voxel_size / 2,  # carving tests voxel centres
             min_width=0.0,
         )
-        boxes = column_boxes(occupied, frame)
+        boxes = hull_boxes(occupied, frame)
         for k in range(0, len(boxes), _PIECES_PER_OBJECT):
             self.labeller.add_object(k, np.eye(4), boxes[k : k + _PIECES_PER_OBJECT])
         self.boxes = len(boxes)

@@ -133,6 +133,33 @@ def matrix_to_quaternion(rot: npt.ArrayLike) -> F64:
     return q if q[3] >= 0 else -q
 
 
+def _peaks(smooth: F32, epsilon: float, window: int) -> npt.NDArray[np.int64]:
+    """``nms3d(smooth, epsilon, window)``, run on the smallest cube of the grid that holds
+    every voxel scoring ``>= epsilon``: the same peaks in the same order (a voxel outside
+    scores below ε and cannot beat one inside; ties go by flat index, which a shift
+    keeps), for a fraction of the voxels."""
+    above = np.argwhere(smooth >= np.float32(epsilon))
+    if len(above) == 0:
+        return np.zeros((0, 3), dtype=np.int64)
+    r = smooth.shape[0]
+    lo = above.min(axis=0)
+    side = int((above.max(axis=0) + 1 - lo).max())
+    lo = np.minimum(lo, r - side)  # the cube stays inside the grid
+    a, b, c = (int(x) for x in lo)
+    crop = np.ascontiguousarray(smooth[a : a + side, b : b + side, c : c + side])
+    return np.asarray(nms3d(crop, float(epsilon), window), dtype=np.int64) + lo
+
+
+def _poses(volumes: GraspVolumes, idx: npt.NDArray[np.int64]) -> F64:
+    """``(N, 4, 4)`` TCP poses of the grasps at voxels ``idx``."""
+    a, b, c = idx[:, 0], idx[:, 1], idx[:, 2]
+    rots = quaternion_to_matrix(volumes.quaternions[a, b, c])
+    poses = np.tile(np.eye(4), (len(idx), 1, 1))
+    poses[:, :3, :3] = rots
+    poses[:, :3, 3] = volumes.frame.centers(idx) + volumes.tcp_offset * rots[:, :, 2]
+    return poses
+
+
 def select_candidates(
     volumes: GraspVolumes,
     *,
@@ -148,9 +175,8 @@ def select_candidates(
     ``[0, max_width]``.
 
     ``reject``: maps ``(N, 4, 4)`` TCP poses to ``(N,)`` bools, True for a grasp to drop
-    (:class:`~heapgrasp.planning.hull_check.HullCheck`). A dropped voxel leaves the
-    smoothed scores and NMS runs again, so a neighbour it suppressed can take its place;
-    this repeats until every maximum is kept."""
+    (:class:`~heapgrasp.planning.hull_check.HullCheck`), applied to every voxel scoring
+    ``>= epsilon`` before NMS: a dropped grasp suppresses none of its neighbours."""
     if not (math.isfinite(epsilon) and 0.0 <= epsilon <= 1.0):
         raise ValueError(f"epsilon must be in [0, 1], got {epsilon}")
     if not (math.isfinite(sigma) and sigma >= 0.0):
@@ -161,27 +187,17 @@ def select_candidates(
     smooth = gaussian_filter3d(quality, sigma) if sigma > 0 else quality
     # Smoothing must not create grasps where the planner found none.
     smooth = np.where(quality > 0, smooth, np.float32(0.0)).astype(np.float32)
-    kept = np.zeros(quality.shape, dtype=bool)  # maxima ``reject`` already let through
-    while True:
-        idx = nms3d(np.ascontiguousarray(smooth), float(epsilon), nms_window)
-        if len(idx) == 0:
-            return []
-        a, b, c = idx[:, 0], idx[:, 1], idx[:, 2]
-        rots = quaternion_to_matrix(volumes.quaternions[a, b, c])
-        poses = np.tile(np.eye(4), (len(idx), 1, 1))
-        poses[:, :3, :3] = rots
-        poses[:, :3, 3] = volumes.frame.centers(idx) + volumes.tcp_offset * rots[:, :, 2]
-        if reject is None:
-            break
-        new = ~kept[a, b, c]
-        if not new.any():
-            break
-        dropped = np.asarray(reject(poses[new]), dtype=bool)
-        if dropped.shape != (int(new.sum()),):
-            raise ValueError(f"reject returned shape {dropped.shape} for {new.sum()} poses")
-        checked = idx[new]
-        kept[tuple(checked[~dropped].T)] = True
-        smooth[tuple(checked[dropped].T)] = 0.0
+    if reject is not None:
+        above = np.argwhere(smooth >= np.float32(epsilon))
+        dropped = np.asarray(reject(_poses(volumes, above)), dtype=bool)
+        if dropped.shape != (len(above),):
+            raise ValueError(f"reject returned shape {dropped.shape} for {len(above)} poses")
+        smooth[tuple(above[dropped].T)] = 0.0
+    idx = _peaks(smooth, epsilon, nms_window)
+    if len(idx) == 0:
+        return []
+    a, b, c = idx[:, 0], idx[:, 1], idx[:, 2]
+    poses = _poses(volumes, idx)
     out = []
     for k in range(len(idx)):
         pose = poses[k].copy()
