@@ -147,7 +147,8 @@ def _peaks(smooth: F32, epsilon: float, window: int) -> npt.NDArray[np.int64]:
     lo = np.minimum(lo, r - side)  # the cube stays inside the grid
     a, b, c = (int(x) for x in lo)
     crop = np.ascontiguousarray(smooth[a : a + side, b : b + side, c : c + side])
-    return np.asarray(nms3d(crop, float(epsilon), window), dtype=np.int64) + lo
+    peaks: npt.NDArray[np.int64] = np.asarray(nms3d(crop, float(epsilon), window), np.int64)
+    return peaks + lo
 
 
 def _poses(volumes: GraspVolumes, idx: npt.NDArray[np.int64]) -> F64:
