@@ -148,7 +148,8 @@ def _peaks(smooth: F32, epsilon: float, window: int) -> npt.NDArray[np.int64]:
     a, b, c = (int(x) for x in lo)
     crop = np.ascontiguousarray(smooth[a : a + side, b : b + side, c : c + side])
     peaks: npt.NDArray[np.int64] = np.asarray(nms3d(crop, float(epsilon), window), np.int64)
-    return peaks + lo
+    peaks += lo
+    return peaks
 
 
 def _poses(volumes: GraspVolumes, idx: npt.NDArray[np.int64]) -> F64:
