@@ -120,7 +120,9 @@ class RunConfig:
     weights or ``view_weights``; runs on a robot), ``oracle`` (exact eq. 14 from the true
     meshes: an upper bound that needs the simulator), ``circle`` or ``hemisphere6``."""
     grasp_planner: str = _run("antipodal", "ours")
-    """``antipodal`` (analytic, no training) or ``network`` (VGN weights)."""
+    """``antipodal`` (analytic, no training) or ``network`` (VGN weights; for the
+    silhouette methods its grasps are checked against the hull,
+    :mod:`heapgrasp.planning.hull_check`)."""
     grasp_weights: str | None = _run(None, "ours")
     """Path of the grasp network's ONNX file (``grasp_planner = "network"``)."""
     view_weights: str | None = _run(None, "ours")
