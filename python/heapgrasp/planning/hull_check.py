@@ -9,18 +9,19 @@ the TCP's z, close):
 - fingers that close on nothing of the hull close on nothing.
 
 A grasp network (:mod:`heapgrasp.planning.grasp_network`) regresses one orientation per
-voxel, and where grasps of several orientations succeed at one place (from above and
-from the side) the regression falls between them, into poses whose palm or fingers run
-into the object. :class:`HullCheck` rejects the poses whose hand meets the hull or whose
-fingers close on none of it, with the exact-geometry labeller of the Rust core
-(:class:`heapgrasp.GraspLabeller`, issue 38 §1) run on the hull instead of true meshes:
-the occupied voxels as a few boxes (:func:`hull_boxes`). Carving keeps a voxel when its centre
-projects inside every silhouette (:mod:`heapgrasp.perception.silhouette`), so an object
-may reach up to half a voxel beyond the boxes: the hand must stay that far from them. A
-pose it rejects for touching the hull
-may have been clear of the object itself (the hull is larger: roofs, the volume between
-objects no view saw into); a pose it keeps may still fail for contacts outside the
-friction cone, which it does not judge on voxel faces.
+voxel, and most of its grasps that failed in the closed loop ran the fingers or the palm
+into an object (``docs/experiments.md``, "The grasp network"). :class:`HullCheck`
+rejects the poses whose hand meets the hull or whose fingers close on none of it, with
+the exact-geometry labeller of the Rust core (:class:`heapgrasp.GraspLabeller`, issue 38
+§1) run on the hull instead of true meshes: the occupied voxels as a few boxes
+(:func:`hull_boxes`). Carving keeps a voxel when its centre projects inside every
+silhouette (:mod:`heapgrasp.perception.silhouette`), so an object may reach up to half a
+voxel beyond the boxes: the hand must stay that far from them.
+
+A pose it rejects for touching the hull may have been clear of the object itself (the
+hull is larger: roofs, the volume between objects no view saw into); a pose it keeps may
+still fail for contacts outside the friction cone, which it does not judge on voxel
+faces, or close on phantom volume.
 
 The analytic planner (:mod:`heapgrasp.planning.antipodal`) makes the same collision
 check on its own lattice; :func:`~heapgrasp.planning.volumes.select_candidates` applies
