@@ -252,3 +252,47 @@ def test_the_loop_plans_for_the_robots_gripper() -> None:
     planned = pipeline.plan()
     assert planned.grasp is not None and planned.grasp.width <= 0.06
     assert all(c.width <= 0.06 for c in pipeline.grasp_candidates())
+
+
+def test_the_shipped_grasp_networks_grasps_are_checked_against_the_hull(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from heapgrasp.loop.phase import make_grasp_planner
+    from heapgrasp.perception.silhouette import SilhouettePerception
+    from heapgrasp.planning.grasp_network import NetworkGraspPlanner
+    from heapgrasp.planning.hull_check import HullCheck
+    from heapgrasp.planning.volumes import select_candidates
+    from heapgrasp.robot.grasping import PREGRASP_DISTANCE
+
+    robot = FakeRobot(FakeScene(BOXES))
+    config = RunConfig(method="no-vp", grasp_planner="network")  # the shipped weights
+    pipeline = build_pipeline(config, robot, segmenter=RedSegmenter())
+    planner = pipeline.grasp_planner
+    assert isinstance(planner, NetworkGraspPlanner) and planner.grasp_origin == "palm"
+    pipeline.plan()
+    assert isinstance(pipeline.perception, SilhouettePerception)
+    hull = pipeline.perception.grid.high_confidence(config.lam) > 0
+    check = HullCheck(hull, pipeline.frame, pregrasp_distance=PREGRASP_DISTANCE)
+    cands = pipeline.grasp_candidates()
+    assert cands and not check(np.stack([c.pose for c in cands])).any()
+    # The loop's candidates are eq. 15's with the check, which drops none of these.
+    volumes = planner.predict(pipeline.perception.grasp_input(), pipeline.frame)
+    checked = select_candidates(
+        volumes, epsilon=0.8, sigma=1.0, nms_window=config.nms_window, reject=check
+    )
+    assert [c.index for c in cands] == [c.index for c in checked]
+    # A check that rejects everything leaves the loop no candidate.
+    import heapgrasp.loop.phase
+
+    class RejectAll:
+        def __init__(self, *args: object, **kwargs: object) -> None:
+            pass
+
+        def __call__(self, poses: np.ndarray) -> np.ndarray:
+            return np.ones(len(poses), dtype=bool)
+
+    monkeypatch.setattr(heapgrasp.loop.phase, "HullCheck", RejectAll)
+    assert pipeline.grasp_candidates() == []
+    # The VGN baseline reads TSDFs, for which no network ships.
+    with pytest.raises(ConfigError, match="no grasp network for tsdf grids ships"):
+        make_grasp_planner(RunConfig(method="vgn", grasp_planner="network"))

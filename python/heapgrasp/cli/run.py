@@ -81,9 +81,14 @@ def add_parser(
     p.add_argument(
         "--grasp-planner",
         choices=GRASP_PLANNERS,
-        help="grasp planner (default antipodal: analytic, needs no training)",
+        help="grasp planner (default antipodal: analytic, needs no training; network: the "
+        "grasp network of eq. 11, its grasps checked against the hull)",
     )
-    p.add_argument("--grasp-weights", help="grasp-network weights file (--grasp-planner network)")
+    p.add_argument(
+        "--grasp-weights",
+        help="grasp-network weights file (--grasp-planner network; default: the shipped "
+        "occupancy network; the vgn method needs a TSDF network's file)",
+    )
     p.add_argument("--view-weights", help="view-network weights file (--view-planner network)")
     p.add_argument("--layout", choices=LAYOUTS, help="scene layout (default pile)")
     p.add_argument("--category", choices=CATEGORIES, help="scene group (default mixed)")
