@@ -1,0 +1,135 @@
+"""Seed 001's grasp synthesis (planning.synthesis) on analytic shapes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from heapgrasp.planning.synthesis import (
+    contact_patch_ok,
+    estimate_normals,
+    grasp_pairs,
+    rank_grasps,
+    usable_contacts,
+)
+
+S = 0.0075  # the benchmark's voxel
+
+
+def _box(size: tuple[float, float, float]) -> np.ndarray:
+    """Surface points of a box standing on the table (z = 0), centred on the z axis, on
+    a 7.5 mm lattice of each face but the bottom."""
+    sx, sy, sz = size
+    xs = np.arange(-sx / 2, sx / 2 + 1e-9, S)
+    ys = np.arange(-sy / 2, sy / 2 + 1e-9, S)
+    zs = np.arange(0.0, sz + 1e-9, S)
+    faces = []
+    for x in (xs[0], xs[-1]):
+        faces.append(np.stack(np.meshgrid([x], ys, zs, indexing="ij"), -1).reshape(-1, 3))
+    for y in (ys[0], ys[-1]):
+        faces.append(np.stack(np.meshgrid(xs, [y], zs, indexing="ij"), -1).reshape(-1, 3))
+    faces.append(np.stack(np.meshgrid(xs, ys, [zs[-1]], indexing="ij"), -1).reshape(-1, 3))
+    return np.unique(np.round(np.vstack(faces), 9), axis=0)
+
+
+def _cylinder(radius: float, height: float) -> np.ndarray:
+    n = max(8, round(2 * math.pi * radius / S))
+    a = np.arange(n) * 2 * math.pi / n
+    zs = np.arange(0.0, height + 1e-9, S)
+    side = np.stack(
+        [
+            np.repeat(radius * np.cos(a), len(zs)),
+            np.repeat(radius * np.sin(a), len(zs)),
+            np.tile(zs, n),
+        ],
+        -1,
+    )
+    g = np.arange(-radius, radius + 1e-9, S)
+    xx, yy = np.meshgrid(g, g)
+    top = np.column_stack([xx.ravel(), yy.ravel(), np.full(xx.size, zs[-1])])
+    return np.vstack([side, top[np.hypot(top[:, 0], top[:, 1]) < radius - S / 2]])
+
+
+def _sphere(radius: float) -> np.ndarray:
+    n = round(4 * math.pi * radius**2 / S**2)
+    k = np.arange(n) + 0.5
+    polar = np.arccos(1 - 2 * k / n)
+    azimuth = math.pi * (1 + 5**0.5) * k
+    unit = np.column_stack(
+        [np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)]
+    )
+    return unit * radius + [0.0, 0.0, radius]
+
+
+def _synthesise(points: np.ndarray):
+    normals, curvature = estimate_normals(points)
+    usable = usable_contacts(points, normals, curvature)
+    return normals, usable, grasp_pairs(points, normals, usable)
+
+
+def test_normals_point_out_of_a_sphere_with_low_curvature():
+    pts = _sphere(0.05)
+    normals, curvature = estimate_normals(pts)
+    radial = (pts - [0, 0, 0.05]) / 0.05
+    assert np.einsum("ij,ij->i", normals, radial).min() > 0.98
+    assert curvature.max() < 0.05
+    with pytest.raises(ValueError, match="need at least 10 points"):
+        estimate_normals(pts[:5])
+    with pytest.raises(ValueError, match=r"points must be \(N, 3\)"):
+        estimate_normals(pts[:, :2])
+
+
+def test_a_box_is_grasped_across_its_narrow_faces_only():
+    pts = _box((0.04, 0.09, 0.10))
+    _, usable, pairs = _synthesise(pts)
+    assert len(pairs) > 20
+    line = pts[pairs.second] - pts[pairs.first]
+    line /= np.linalg.norm(line, axis=1)[:, None]
+    assert np.abs(line[:, 0]).min() > math.cos(math.radians(15.0))  # across x, 4 cm
+    assert pairs.quality.min() >= 150.0 and pairs.width.max() <= 0.08
+    np.testing.assert_allclose(np.median(pairs.width), 0.04 + S, atol=0.004)
+    # Not within 1 cm of the bottom, nor on the edges (curvature).
+    assert pts[pairs.first, 2].min() >= 0.01 and pts[pairs.second, 2].min() >= 0.01
+    edge = (np.abs(np.abs(pts[:, 0]) - 0.02) < 1e-6) & (np.abs(np.abs(pts[:, 1]) - 0.045) < 1e-6)
+    assert not usable[edge].any()
+
+
+def test_a_sphere_wider_than_the_hand_gets_no_grasp():
+    _, usable, pairs = _synthesise(_sphere(0.05))
+    assert usable.sum() > 100 and len(pairs) == 0
+
+
+def test_a_cylinder_is_grasped_across_its_diameter():
+    pts = _cylinder(0.03, 0.10)
+    _, _, pairs = _synthesise(pts)
+    assert len(pairs) > 20
+    mid = (pts[pairs.first] + pts[pairs.second]) / 2
+    assert np.hypot(mid[:, 0], mid[:, 1]).max() < 0.01  # through the axis
+    line = pts[pairs.second] - pts[pairs.first]
+    tilt = np.degrees(np.arcsin(np.abs(line[:, 2]) / np.linalg.norm(line, axis=1)))
+    assert tilt.max() <= 15.0  # the 150° quality allows 15° on each contact
+    assert (tilt == 0.0).mean() > 0.3
+    np.testing.assert_allclose(pairs.width, 0.06 + S, atol=0.003)
+
+
+def test_a_finger_pad_needs_a_patch():
+    plane = np.stack(np.meshgrid(np.arange(-0.05, 0.05, S), np.arange(-0.05, 0.05, S)), -1)
+    flat = np.column_stack([plane.reshape(-1, 2), np.zeros(plane.size // 2)])
+    normals = np.tile([0.0, 0.0, 1.0], (len(flat), 1))
+    centre = int(np.argmin(np.linalg.norm(flat, axis=1)))
+    assert contact_patch_ok(flat, normals, centre)
+    strip = flat[np.abs(flat[:, 0]) < 0.01]  # 2 cm wide: too narrow for the 26 mm pad
+    assert not contact_patch_ok(
+        strip, normals[: len(strip)], int(np.argmin(np.linalg.norm(strip, axis=1)))
+    )
+
+
+def test_grasps_near_the_centre_line_come_first():
+    pts = _box((0.04, 0.09, 0.10))
+    _, _, pairs = _synthesise(pts)
+    order = rank_grasps(pts, pairs, [0.0, 0.0, 0.05])
+    mid = (pts[pairs.first] + pts[pairs.second]) / 2
+    line = np.hypot(mid[order, 0], mid[order, 1])
+    assert np.all(np.diff(np.floor(line / 0.01)) >= 0)
+    assert sorted(order.tolist()) == list(range(len(pairs)))
