@@ -11,6 +11,7 @@ mod errors;
 mod filter;
 mod grasp_label;
 mod gripper;
+mod hand_points;
 mod occupancy;
 mod raster;
 mod roofs;
@@ -45,6 +46,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<grasp_label::PyGraspLabeller>()?;
     m.add_function(wrap_pyfunction!(score::score_views, m)?)?;
     m.add_function(wrap_pyfunction!(antipodal::antipodal_grasps, m)?)?;
+    m.add_function(wrap_pyfunction!(hand_points::hand_point_counts, m)?)?;
     m.add_function(wrap_pyfunction!(roofs::keep_silhouettes, m)?)?;
     m.add_function(wrap_pyfunction!(filter::gaussian_filter3d, m)?)?;
     m.add_function(wrap_pyfunction!(filter::maximum_filter3d, m)?)?;

@@ -38,6 +38,7 @@ __all__ = [
     "__version__",
     "antipodal_grasps",
     "gaussian_filter3d",
+    "hand_point_counts",
     "keep_silhouettes",
     "kernel_level",
     "maximum_filter3d",
@@ -316,6 +317,26 @@ def antipodal_grasps(
     (orthonormal, det +1, within 1e-4: else ``NotRigidError``) and ``tilts`` finite.
     Returns per candidate the best quality in [0, 1] (0: none), the index of its
     orientation and its width (m).
+    """
+
+def hand_point_counts(
+    hand: Mapping[str, Any],
+    tcp2world: _F64,
+    openings: _F64,
+    points: _F64,
+    *,
+    cell: float | None = None,
+    threads: int | None = None,
+) -> npt.NDArray[np.uint32]:
+    """How many of ``points`` lie inside the hand at each pose (seed 001's gripper
+    collision check against the object's and the unexplored region's points).
+
+    ``hand``: a mapping of ``GripperGeometry``'s fields (its boxes); ``tcp2world``
+    (N, 4, 4) float64 TCP poses (z the approach, fingers closing along y); ``openings``
+    (N,) float64 distance between the finger pads (m), in (0, ``hand["max_opening"]``];
+    ``points`` (P, 3) float64 world points, indexed in cells of ``cell`` metres
+    (default 0.01). Returns (N,) counts (a point inside two of the hand's boxes counts
+    twice). Runs on ``threads`` threads (0 or None: all) with the GIL released.
     """
 
 def keep_silhouettes(

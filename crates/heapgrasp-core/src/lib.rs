@@ -31,6 +31,7 @@ pub mod filter;
 pub mod grasp_label;
 pub mod grid;
 pub mod gripper;
+pub mod hand_points;
 pub mod nms;
 pub mod occupancy;
 pub mod parallel;
