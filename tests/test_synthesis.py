@@ -133,3 +133,43 @@ def test_grasps_near_the_centre_line_come_first():
     line = np.hypot(mid[order, 0], mid[order, 1])
     assert np.all(np.diff(np.floor(line / 0.01)) >= 0)
     assert sorted(order.tolist()) == list(range(len(pairs)))
+
+
+def test_a_grasp_pose_closes_along_the_contact_line_and_pitch_turns_the_approach():
+    from heapgrasp.planning.synthesis import grasp_pose
+
+    p1, p2 = np.array([0.02, 0.0, 0.05]), np.array([-0.02, 0.0, 0.05])
+    above = grasp_pose(p1, p2, math.pi / 2)
+    np.testing.assert_allclose(above[:3, 1], [1.0, 0.0, 0.0], atol=1e-12)  # closing
+    np.testing.assert_allclose(above[:3, 2], [0.0, 0.0, -1.0], atol=1e-12)  # from above
+    np.testing.assert_allclose(above[:3, 3], [0.0, 0.0, 0.05])
+    side = grasp_pose(p1, p2, 0.0)
+    assert abs(side[2, 2]) < 1e-12  # level approach
+    for pose in (above, side, grasp_pose([0, 0, 0.1], [0, 0, 0.05], 0.3)):
+        r = pose[:3, :3]
+        np.testing.assert_allclose(r.T @ r, np.eye(3), atol=1e-12)
+        assert np.linalg.det(r) > 0.999
+
+
+def test_the_first_free_grasp_avoids_the_unexplored_region():
+    from heapgrasp.planning.synthesis import first_free_grasp
+
+    pts = _box((0.04, 0.09, 0.10))
+    _, _, pairs = _synthesise(pts)
+    order = rank_grasps(pts, pairs, [0.0, 0.0, 0.05])
+    below = np.stack(np.meshgrid(*(np.arange(-0.2, 0.2, 0.02),) * 2, [-0.005]), -1).reshape(-1, 3)
+    found = first_free_grasp(pts, below, pairs, order)
+    assert found is not None
+    k, pose = found
+    np.testing.assert_allclose(pose[:3, 3], (pts[pairs.first[k]] + pts[pairs.second[k]]) / 2)
+    np.testing.assert_allclose(pose[:3, 2], [0.0, 0.0, -1.0], atol=1e-9)  # from above first
+    assert abs(pose[0, 1]) > 0.99  # closing across the 4 cm side
+    # Unexplored space above the box: no approach from above, another one is found.
+    g = np.arange(-0.15, 0.15, 0.01)
+    roof = np.stack(np.meshgrid(g, g, np.arange(0.11, 0.3, 0.01)), -1).reshape(-1, 3)
+    found = first_free_grasp(pts, np.vstack([below, roof]), pairs, order)
+    assert found is not None and found[1][2, 2] > -0.99
+    # Unexplored all around: nothing is free.
+    shell = np.stack(np.meshgrid(g, g, np.arange(0.0, 0.3, 0.01)), -1).reshape(-1, 3)
+    outside = (np.abs(shell[:, 0]) > 0.03) | (np.abs(shell[:, 1]) > 0.055) | (shell[:, 2] > 0.11)
+    assert first_free_grasp(pts, shell[outside], pairs, order) is None

@@ -20,13 +20,19 @@ grasp on the object's points (:mod:`heapgrasp.perception.clouds`):
    nearer the vertical line through the object's centroid first (1 cm bands), then
    higher (6 cm bands), then nearer the centroid (1 cm bands), then better quality.
 
-The gripper's collision check against the object and the unexplored points comes with
-the benchmark's world; the hot loops move to the Rust core with this module as their
+5. **Collision check** (:func:`first_free_grasp`): in that order, the first grasp whose
+   hand holds none of the object's and the unexplored region's points
+   (:func:`heapgrasp.hand_point_counts`, the Rust core) at the contacts' midpoint, the
+   fingers closing along the contact line, with the approach turned about that line
+   through the public code's 8 pitches (from above first, then 45° and 135° off, ...).
+
+Steps 1–4 are NumPy; their hot loops move to the Rust core with this module as their
 test reference.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -35,11 +41,17 @@ import numpy.typing as npt
 from scipy import ndimage
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
+from heapgrasp import hand_point_counts
+from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
+
 __all__ = [
+    "PITCHES_DEG",
     "GraspPairs",
     "contact_patch_ok",
     "estimate_normals",
+    "first_free_grasp",
     "grasp_pairs",
+    "grasp_pose",
     "rank_grasps",
     "usable_contacts",
 ]
@@ -47,6 +59,10 @@ __all__ = [
 F64 = npt.NDArray[np.float64]
 Bool = npt.NDArray[np.bool_]
 I64 = npt.NDArray[np.int64]
+
+#: The approach's turns about the contact line, in the order tried (degrees; 90: from
+#: above), as the public code's ``collisionCheck``.
+PITCHES_DEG = (90, 45, 135, 270, 225, 315, 0, 180)
 
 #: The patch image: 101 × 101 px at 1 px/mm, a pad of 26 px (the public code's values).
 _PATCH_PX = 101
@@ -209,3 +225,59 @@ def rank_grasps(points: npt.ArrayLike, pairs: GraspPairs, centroid: npt.ArrayLik
     )  # np.lexsort: the last key first
     order: I64 = np.lexsort(keys).astype(np.int64)
     return order
+
+
+def grasp_pose(p1: F64, p2: F64, pitch: float) -> F64:
+    """``(4, 4)`` TCP pose at the midpoint of contacts ``p1``, ``p2``: fingers closing
+    along the contact line (TCP y), the approach (TCP z) horizontal at ``pitch = 0`` and
+    turned by ``pitch`` (radians) about the contact line; ``π/2`` comes from above when
+    the line is level."""
+    y = np.asarray(p1, dtype=np.float64) - np.asarray(p2, dtype=np.float64)
+    y /= np.linalg.norm(y)
+    z0 = np.cross(y, [0.0, 0.0, 1.0])
+    if np.linalg.norm(z0) < 1e-9:  # a vertical contact line: any horizontal approach
+        z0 = np.cross(y, [1.0, 0.0, 0.0])
+    z0 /= np.linalg.norm(z0)
+    x0 = np.cross(y, z0)
+    # Turning z0 toward x0 = y × z0 = -(down) for a level line: pitch π/2 is from above.
+    z = math.cos(pitch) * z0 + math.sin(pitch) * x0
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([np.cross(y, z), y, z])
+    pose[:3, 3] = (np.asarray(p1) + np.asarray(p2)) / 2.0
+    return pose
+
+
+def first_free_grasp(
+    points: npt.ArrayLike,
+    unexplored: npt.ArrayLike,
+    pairs: GraspPairs,
+    order: npt.ArrayLike,
+    *,
+    gripper: GripperGeometry = PANDA_HAND,
+    batch: int = 128,
+) -> tuple[int, F64] | None:
+    """The first pair of ``order`` (and its TCP pose) at which, for one of
+    :data:`PITCHES_DEG` in turn, the hand holds none of ``points`` and ``unexplored``;
+    None when every one collides. The fingers are ``pairs.width`` apart (at most the
+    hand's opening)."""
+    pts = _cloud(points)
+    obstacles = np.vstack([pts, _cloud(unexplored, "unexplored").reshape(-1, 3)])
+    ranked = np.asarray(order, dtype=np.int64)
+    hand = dataclasses.asdict(gripper)
+    pitches = [math.radians(p) for p in PITCHES_DEG]
+    for start in range(0, len(ranked), batch):
+        chunk = ranked[start : start + batch]
+        poses = np.stack(
+            [
+                grasp_pose(pts[pairs.first[k]], pts[pairs.second[k]], pitch)
+                for k in chunk
+                for pitch in pitches
+            ]
+        )
+        widths = np.repeat(np.minimum(pairs.width[chunk], gripper.max_opening), len(pitches))
+        counts = hand_point_counts(hand, poses, widths, obstacles)
+        free = np.flatnonzero(counts == 0)
+        if len(free):
+            first = int(free[0])
+            return int(chunk[first // len(pitches)]), poses[first]
+    return None
