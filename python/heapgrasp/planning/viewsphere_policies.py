@@ -1,0 +1,195 @@
+"""Seed 001's baseline policies on the discrete viewsphere, and its episodes.
+
+The benchmark of seed ``001_95c7dd5c6a7c3646.txt`` (§4.1) starts the camera at
+:data:`~heapgrasp.geometry.viewsphere.START`, looks for a grasp on what it has seen, and
+while none is found moves one step (:meth:`DiscreteViewsphere.move`, with its fallbacks)
+in the direction a policy picks, for at most ``max_steps`` moves (6 in the paper). A
+policy maps the episode's state to one of the 8 directions
+(:data:`~heapgrasp.geometry.viewsphere.DIRECTIONS`):
+
+- :class:`RandomPolicy`: uniform over the 8, from a seeded generator;
+- :class:`BrickPolicy`: always north-east (the paper's naive baseline);
+- :func:`breadth_first`: not a policy but the exhaustive search the others are measured
+  against, the fewest moves from the start to a set of views that yields a grasp.
+
+Whether a set of views yields a grasp is the caller's (``grasp_found``): the world
+renders the views, fuses them and runs the synthesis. Fusion is order-free, so
+:func:`breadth_first` asks once per distinct set of visited poses.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from heapgrasp.geometry.viewsphere import (
+    DIRECTIONS,
+    START,
+    DiscreteViewsphere,
+    SpherePose,
+)
+
+__all__ = [
+    "BrickPolicy",
+    "Episode",
+    "RandomPolicy",
+    "ViewState",
+    "ViewspherePolicy",
+    "breadth_first",
+    "pose_key",
+    "run_episode",
+]
+
+#: Decimal places of a pose's angles in :func:`pose_key` (radians).
+_KEY_DIGITS = 6
+
+PoseKey = tuple[float, float]
+GraspFound = Callable[[frozenset[PoseKey]], bool]
+
+
+def pose_key(pose: SpherePose) -> PoseKey:
+    """A hashable key of ``pose`` (angles rounded; the azimuth of a pole is 0)."""
+    polar = round(pose.polar, _KEY_DIGITS)
+    azimuth = 0.0 if polar == 0.0 else round(pose.azimuth % (2 * math.pi), _KEY_DIGITS)
+    return (azimuth, polar)
+
+
+@dataclass(frozen=True)
+class ViewState:
+    """What a policy sees: the camera's pose, the poses visited (in order, the current
+    one last) and the moves made so far."""
+
+    pose: SpherePose
+    visited: tuple[SpherePose, ...]
+    step: int
+
+
+@runtime_checkable
+class ViewspherePolicy(Protocol):
+    """Picks the next direction (an index of ``DIRECTIONS``)."""
+
+    name: str
+
+    def reset(self, seed: int) -> None:
+        """Starts a new episode (a policy with randomness draws from ``seed``)."""
+
+    def choose(self, state: ViewState) -> int:
+        """The direction to move in next."""
+
+
+@dataclass
+class RandomPolicy:
+    """A uniformly random direction at each step."""
+
+    name: str = "random"
+    _rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
+
+    def reset(self, seed: int) -> None:
+        self._rng = np.random.default_rng(seed)
+
+    def choose(self, state: ViewState) -> int:
+        return int(self._rng.integers(len(DIRECTIONS)))
+
+
+@dataclass
+class BrickPolicy:
+    """Always north-east (seed 001's "brick on the gas pedal")."""
+
+    name: str = "brick"
+
+    def reset(self, seed: int) -> None:
+        pass
+
+    def choose(self, state: ViewState) -> int:
+        return DIRECTIONS.index("NE")
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One episode: the poses visited (the start first), the directions taken, and the
+    moves until a grasp was found (``max_steps`` when none was)."""
+
+    poses: tuple[SpherePose, ...]
+    directions: tuple[int, ...]
+    steps: int
+    found: bool
+
+
+def run_episode(
+    policy: ViewspherePolicy,
+    grasp_found: GraspFound,
+    *,
+    sphere: DiscreteViewsphere | None = None,
+    start: SpherePose = START,
+    max_steps: int = 6,
+    seed: int = 0,
+) -> Episode:
+    """Runs ``policy`` from ``start`` until ``grasp_found`` holds for the poses visited
+    or ``max_steps`` moves were made."""
+    if not (isinstance(max_steps, int) and max_steps >= 0):
+        raise ValueError(f"max_steps must be an int >= 0, got {max_steps!r}")
+    sphere = DiscreteViewsphere() if sphere is None else sphere
+    if not sphere.valid(start):
+        raise ValueError(f"start {start} is not a valid pose of the viewsphere")
+    policy.reset(seed)
+    poses = [start]
+    directions: list[int] = []
+    while True:
+        if grasp_found(frozenset(pose_key(p) for p in poses)):
+            return Episode(tuple(poses), tuple(directions), len(directions), True)
+        if len(directions) == max_steps:
+            return Episode(tuple(poses), tuple(directions), max_steps, False)
+        wanted = policy.choose(ViewState(poses[-1], tuple(poses), len(directions)))
+        taken, nxt = sphere.move(poses[-1], wanted)
+        directions.append(taken)
+        poses.append(nxt)
+
+
+def breadth_first(
+    grasp_found: GraspFound,
+    *,
+    sphere: DiscreteViewsphere | None = None,
+    start: SpherePose = START,
+    max_steps: int = 6,
+) -> Episode:
+    """The fewest moves from ``start`` to a set of visited poses for which
+    ``grasp_found`` holds (ties: the first in direction order, level by level), asking
+    ``grasp_found`` once per distinct set; ``found`` False after ``max_steps`` levels."""
+    if not (isinstance(max_steps, int) and max_steps >= 0):
+        raise ValueError(f"max_steps must be an int >= 0, got {max_steps!r}")
+    sphere = DiscreteViewsphere() if sphere is None else sphere
+    if not sphere.valid(start):
+        raise ValueError(f"start {start} is not a valid pose of the viewsphere")
+    answers: dict[frozenset[PoseKey], bool] = {}
+
+    def found(poses: Iterable[SpherePose]) -> bool:
+        key = frozenset(pose_key(p) for p in poses)
+        if key not in answers:
+            answers[key] = grasp_found(key)
+        return answers[key]
+
+    frontier: list[tuple[tuple[SpherePose, ...], tuple[int, ...]]] = [((start,), ())]
+    if found(frontier[0][0]):
+        return Episode((start,), (), 0, True)
+    seen = {(pose_key(start), frozenset([pose_key(start)]))}
+    for depth in range(1, max_steps + 1):
+        nxt_frontier = []
+        for poses, directions in frontier:
+            for d in range(len(DIRECTIONS)):
+                taken, nxt = sphere.move(poses[-1], d)
+                if taken != d:  # the fallback leads where another direction does
+                    continue
+                path = (*poses, nxt)
+                state = (pose_key(nxt), frozenset(pose_key(p) for p in path))
+                if state in seen:
+                    continue
+                seen.add(state)
+                if found(path):
+                    return Episode(path, (*directions, d), depth, True)
+                nxt_frontier.append((path, (*directions, d)))
+        frontier = nxt_frontier
+    return Episode((start,), (), max_steps, False)
