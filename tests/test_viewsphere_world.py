@@ -1,0 +1,49 @@
+"""Seed 001's world on the renderer (sim.viewsphere_world): views, fusion, a grasp."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from heapgrasp.geometry.viewsphere import START
+from heapgrasp.planning.viewsphere_policies import BrickPolicy, breadth_first, run_episode
+from heapgrasp.sim.viewsphere_world import SEED001_CAMERA, ViewsphereWorld
+
+
+def _on_table(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    v = np.asarray(mesh.vertices, dtype=np.float64).copy()
+    v[:, 2] -= v[:, 2].min()
+    return v, np.asarray(mesh.faces, dtype=np.int64)
+
+
+def test_the_camera_is_seed_001s():
+    assert (SEED001_CAMERA.width, SEED001_CAMERA.height) == (640, 480)
+    fov = 2 * np.arctan(SEED001_CAMERA.width / 2 / SEED001_CAMERA.fx)
+    assert fov == pytest.approx(1.047198, abs=1e-5)
+
+
+def test_a_box_is_seen_fused_and_grasped_across_its_narrow_side():
+    world = ViewsphereWorld([_on_table(trimesh.creation.box(extents=(0.04, 0.09, 0.10)))])
+    depth = world.depth(START)
+    assert depth.shape == (480, 640) and depth.max() > 0.3
+    obj, table_z = world.object_points([START])
+    assert abs(table_z) < 0.002 and len(obj) > 50
+    assert obj[:, 2].max() == pytest.approx(0.10, abs=0.005)
+    episode = breadth_first(world.grasp_found, max_steps=2)
+    assert episode.found
+    grasp = world.grasp(list(episode.poses))
+    assert grasp is not None and grasp.quality >= 150.0
+    line = grasp.contacts[0] - grasp.contacts[1]
+    assert abs(line[0]) / np.linalg.norm(line) > 0.9  # across the 4 cm side
+    # The brick policy's episode runs on the same world.
+    brick = run_episode(BrickPolicy(), world.grasp_found, max_steps=2)
+    assert len(brick.poses) == brick.steps + 1
+
+
+def test_a_sphere_wider_than_the_hand_yields_nothing():
+    world = ViewsphereWorld([_on_table(trimesh.creation.icosphere(subdivisions=3, radius=0.05))])
+    assert world.grasp([START]) is None
+    with pytest.raises(ValueError, match="at least one view"):
+        world.grasp([])
+    with pytest.raises(ValueError, match="at least one mesh"):
+        ViewsphereWorld([])
