@@ -1628,6 +1628,73 @@ def test_module_functions():
     assert isinstance(_core.__version__, str) and _core.__version__
 
 
+# ------------------------------------------------------------------ hand_point_counts
+@FUZZ
+@given(data=st.data())
+def test_hand_point_counts(data):
+    EXAMPLES_RUN["test_hand_point_counts"] += 1
+    names = ["hand", "tcp2world", "openings", "points", "cell", "threads"]
+    plan = Plan(data, names)
+    hand: Any = dict(PANDA_FIELDS)
+    if "hand" in plan:
+        hand = data.draw(st.one_of(hand_arg(True), st.just(hand_parts())))
+    n = data.draw(st.integers(0, 5))
+    poses, poses_valid = data.draw(poses_arg(n, (0.0, 0.0, 0.05), "tcp2world" in plan))
+    widths = np.asarray(data.draw(st.lists(st.floats(0.001, 0.08), min_size=n, max_size=n)))
+    openings: Any = widths
+    openings_same = True
+    if "openings" in plan:
+        openings, openings_same = data.draw(
+            st.one_of(
+                maybe_array(widths),
+                st.tuples(st.just(np.append(widths, 0.2)), st.just(False)),
+                st.tuples(st.just(np.full(n + 1, np.nan)), st.just(False)),
+            )
+        )
+    pts = np.asarray(
+        data.draw(
+            hnp.arrays(
+                np.float64, (data.draw(st.integers(0, 40)), 3), elements=st.floats(-0.2, 0.2)
+            )
+        )
+    )
+    points: Any = pts
+    points_same = True
+    if "points" in plan:
+        bad_pts = pts.copy()
+        if len(bad_pts):
+            bad_pts[0, 0] = np.nan
+        points, points_same = data.draw(
+            st.one_of(
+                maybe_array(pts),
+                st.tuples(st.just(np.zeros((3, 2))), st.just(False)),
+                st.tuples(st.just(bad_pts), st.just(not len(pts))),
+            )
+        )
+    cell = data.draw(float_arg(st.floats(-1.0, 0.05))) if "cell" in plan else 0.01
+    threads = data.draw(int_arg(0, 4096)) if "threads" in plan else None
+    out = call(
+        "hand_point_counts",
+        names,
+        _core.hand_point_counts,
+        hand,
+        poses,
+        openings,
+        points,
+        cell=cell,
+        threads=threads,
+    )
+    if not ok(out):
+        assert plan.bad, "a valid call was refused"
+        return
+    assert poses_valid and openings_same and points_same
+    assert out.dtype == np.uint32 and out.shape == (len(poses),)
+    again = _core.hand_point_counts(
+        hand, canonical(poses, np.float64), widths[: len(poses)], pts, threads=1
+    )
+    np.testing.assert_array_equal(out, again)
+
+
 def test_every_entry_point_is_fuzzed():
     """The tests above cover every public name of the native module."""
     covered = {
@@ -1648,6 +1715,7 @@ def test_every_entry_point_is_fuzzed():
         "maximum_filter3d",
         "nms3d",
         "antipodal_grasps",
+        "hand_point_counts",
         "keep_silhouettes",
         "kernel_level",
         "num_threads",
