@@ -136,18 +136,35 @@ impl PointIndex {
         }
         let klo = Self::key(self.cell, &wlo);
         let khi = Self::key(self.cell, &whi);
+        let inside = |points: &[[f64; 3]]| -> u32 {
+            let n = points
+                .iter()
+                .filter(|p| {
+                    let q = world2tcp.transform_point(&Point3::new(p[0], p[1], p[2]));
+                    (0..3).all(|k| q[k] > lo[k] && q[k] < hi[k])
+                })
+                .count();
+            u32::try_from(n).unwrap_or(u32::MAX)
+        };
+        // Visit the cells under the box, or every occupied cell when there are fewer of
+        // those (a tiny cell or a far-off pose): the work stays bounded by the points.
+        let span: f64 = (0..3)
+            .map(|k| (i128::from(khi[k]) - i128::from(klo[k]) + 1) as f64)
+            .product();
         let mut count = 0u32;
+        if span > self.cells.len() as f64 {
+            for (key, points) in &self.cells {
+                if (0..3).all(|k| key[k] >= klo[k] && key[k] <= khi[k]) {
+                    count = count.saturating_add(inside(points));
+                }
+            }
+            return count;
+        }
         for x in klo[0]..=khi[0] {
             for y in klo[1]..=khi[1] {
                 for z in klo[2]..=khi[2] {
-                    let Some(points) = self.cells.get(&[x, y, z]) else {
-                        continue;
-                    };
-                    for p in points {
-                        let q = world2tcp.transform_point(&Point3::new(p[0], p[1], p[2]));
-                        if (0..3).all(|k| q[k] > lo[k] && q[k] < hi[k]) {
-                            count += 1;
-                        }
+                    if let Some(points) = self.cells.get(&[x, y, z]) {
+                        count = count.saturating_add(inside(points));
                     }
                 }
             }
@@ -272,6 +289,20 @@ mod tests {
         let four = hand_point_counts(&hand, &poses, &openings, &index, 4).expect("valid");
         assert_eq!(one, four);
         assert!(one.iter().any(|&c| c > 0));
+    }
+
+    #[test]
+    fn a_tiny_cell_or_a_far_pose_stays_fast_and_agrees() {
+        let hand = HandGeometry::panda();
+        let points = [0.0, 0.045, 0.0, 0.0, 0.0, -0.05, 0.3, 0.3, 0.3];
+        let coarse = PointIndex::new(&points, 0.01).expect("valid");
+        let tiny = PointIndex::new(&points, 1e-300).expect("valid");
+        let poses = [translation(0.0, 0.0, 0.0), translation(1e300, 0.0, 0.0)];
+        let widths = [0.08, 0.08];
+        let a = hand_point_counts(&hand, &poses, &widths, &coarse, 1).expect("valid");
+        let b = hand_point_counts(&hand, &poses, &widths, &tiny, 1).expect("valid");
+        assert_eq!(a, b);
+        assert_eq!(a, vec![2, 0]);
     }
 
     #[test]
