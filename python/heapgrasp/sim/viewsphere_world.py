@@ -103,6 +103,7 @@ class ViewsphereWorld:
         self._core_camera = camera.core()
         self._points: dict[PoseKey, F64] = {}
         self._depth: dict[PoseKey, npt.NDArray[np.float32]] = {}
+        self._first: dict[PoseKey, F64] = {}
 
     def depth(self, pose: SpherePose) -> npt.NDArray[np.float32]:
         """The ideal depth image from ``pose`` (camera z, m; 0 where nothing is hit)."""
@@ -141,13 +142,21 @@ class ViewsphereWorld:
         )
         return fused[keep], table_z
 
+    def _first_object(self, pose: SpherePose) -> F64:
+        """The object points one view shows (what the unexplored region grows from),
+        cached: every set of views a search asks about starts with the same pose."""
+        key = pose_key(pose)
+        if key not in self._first:
+            self._first[key] = self.object_points([pose])[0]
+        return self._first[key]
+
     def grasp(self, poses: Sequence[SpherePose]) -> FoundGrasp | None:
         """The first collision-free grasp on what ``poses`` show (the first pose is the
         one the unexplored region grows from), or None."""
         if not poses:
             raise ValueError("grasp needs at least one view")
         obj, table_z = self.object_points(poses)
-        first, _ = self.object_points(poses[:1])
+        first = self._first_object(poses[0])
         if len(obj) < 10 or len(first) == 0:
             return None
         region = UnexploredRegion.around(first, table_z, spacing=VOXEL)
