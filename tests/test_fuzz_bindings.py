@@ -1695,6 +1695,123 @@ def test_hand_point_counts(data):
     np.testing.assert_array_equal(out, again)
 
 
+# ----------------------------------------------- point_normals, contact_patches, pairs
+def cloud_arg(data: Any, n: int, bad: bool) -> tuple[Any, bool, np.ndarray]:
+    """``(x, same, valid)``: a cloud of ``n`` points, sometimes corrupted."""
+    pts = np.asarray(data.draw(hnp.arrays(np.float64, (n, 3), elements=st.floats(-0.2, 0.2))))
+    if not bad:
+        return pts, True, pts
+    nan = pts.copy()
+    if n:
+        nan[0, 1] = np.nan
+    x, same = data.draw(
+        st.one_of(
+            maybe_array(pts),
+            st.tuples(st.just(np.zeros((n, 2))), st.just(False)),
+            st.tuples(st.just(nan), st.just(not n)),
+        )
+    )
+    return x, same, pts
+
+
+def unit_rows(data: Any, n: int) -> np.ndarray:
+    raw = np.asarray(data.draw(hnp.arrays(np.float64, (n, 3), elements=st.floats(-1.0, 1.0))))
+    raw[np.linalg.norm(raw, axis=1) < 1e-3] = [0.0, 0.0, 1.0]
+    return np.ascontiguousarray(raw / np.linalg.norm(raw, axis=1)[:, None])
+
+
+@FUZZ
+@given(data=st.data())
+def test_point_normals(data):
+    EXAMPLES_RUN["test_point_normals"] += 1
+    names = ["points", "k", "threads"]
+    plan = Plan(data, names)
+    n = data.draw(st.integers(0, 30))
+    points, same, pts = cloud_arg(data, n, "points" in plan)
+    k = data.draw(int_arg(-3, 40)) if "k" in plan else min(10, max(n, 3))
+    threads = data.draw(int_arg(0, 4096)) if "threads" in plan else None
+    out = call("point_normals", names, _core.point_normals, points, k=k, threads=threads)
+    if not ok(out):
+        assert plan.bad or n < 3, "a valid call was refused"
+        return
+    assert same and 3 <= int(k) <= n
+    normals, curvature = out
+    assert normals.shape == (n, 3) and curvature.shape == (n,)
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-9)
+    again = _core.point_normals(pts, k=int(k), threads=1)
+    np.testing.assert_array_equal(normals, again[0])
+    np.testing.assert_array_equal(curvature, again[1])
+
+
+@FUZZ
+@given(data=st.data())
+def test_contact_patches_and_antipodal_pairs(data):
+    EXAMPLES_RUN["test_contact_patches_and_antipodal_pairs"] += 1
+    names = ["points", "normals", "candidates", "threads"]
+    plan = Plan(data, names)
+    n = data.draw(st.integers(0, 30))
+    points, same, pts = cloud_arg(data, n, "points" in plan)
+    nrm = unit_rows(data, n)
+    normals: Any = nrm
+    normals_same = True
+    if "normals" in plan:
+        normals, normals_same = data.draw(
+            st.one_of(
+                maybe_array(nrm),
+                st.tuples(st.just(nrm * 2.0 + 1.0), st.just(not n)),
+                st.tuples(st.just(nrm[:-1] if n else np.zeros((1, 3))), st.just(False)),
+            )
+        )
+    raw = np.asarray(data.draw(hnp.arrays(np.bool_, (n,))))
+    candidates: Any = raw
+    mask_same = True
+    if "candidates" in plan:
+        candidates, mask_same = data.draw(
+            st.one_of(maybe_array(raw), st.tuples(st.just(np.ones(n + 1, bool)), st.just(False)))
+        )
+    threads = data.draw(int_arg(0, 4096)) if "threads" in plan else None
+    out = call(
+        "contact_patches",
+        names,
+        _core.contact_patches,
+        points,
+        normals,
+        candidates,
+        threads=threads,
+    )
+    if ok(out):
+        assert same and normals_same and mask_same
+        assert out.dtype == np.bool_ and out.shape == (n,) and not out[~raw].any()
+        np.testing.assert_array_equal(out, _core.contact_patches(pts, nrm, raw, threads=1))
+    else:
+        assert plan.bad, "a valid call was refused"
+    names = ["points", "normals", "usable", "voxel", "max_width", "min_quality", "threads"]
+    plan = Plan(data, names)
+    points, same, pts = cloud_arg(data, n, "points" in plan)
+    usable: Any = raw
+    kw = {
+        "voxel": data.draw(float_arg(st.floats(0.0, 0.01))) if "voxel" in plan else 0.0075,
+        "max_width": data.draw(float_arg(st.floats(0.01, 0.5))) if "max_width" in plan else 0.08,
+        "min_quality": (
+            data.draw(float_arg(st.floats(-10.0, 190.0))) if "min_quality" in plan else 150.0
+        ),
+        "threads": data.draw(int_arg(0, 4096)) if "threads" in plan else None,
+    }
+    normals, normals_same = data.draw(maybe_array(nrm, "normals" in plan))
+    usable, usable_same = data.draw(maybe_array(raw, "usable" in plan))
+    out = call("antipodal_pairs", names, _core.antipodal_pairs, points, normals, usable, **kw)
+    if not ok(out):
+        assert plan.bad, "a valid call was refused"
+        return
+    assert same and normals_same and usable_same
+    first, second, quality, width = out
+    assert first.dtype == second.dtype == np.int64
+    assert len(first) == len(second) == len(quality) == len(width)
+    if len(first):
+        assert (first < second).all() and second.max() < n
+        assert quality.min() >= float(kw["min_quality"]) and quality.max() <= 180.0 + 1e-9
+
+
 def test_every_entry_point_is_fuzzed():
     """The tests above cover every public name of the native module."""
     covered = {
@@ -1716,6 +1833,9 @@ def test_every_entry_point_is_fuzzed():
         "nms3d",
         "antipodal_grasps",
         "hand_point_counts",
+        "point_normals",
+        "contact_patches",
+        "antipodal_pairs",
         "keep_silhouettes",
         "kernel_level",
         "num_threads",

@@ -1,13 +1,16 @@
-"""Seed 001's grasp synthesis (planning.synthesis) on analytic shapes."""
+"""Seed 001's grasp synthesis (planning.synthesis) on analytic shapes, and the core's
+kernels against their NumPy reference (tests/reference_synthesis.py)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
+import reference_synthesis as ref
+from heapgrasp import contact_patches
 from heapgrasp.planning.synthesis import (
-    contact_patch_ok,
     estimate_normals,
     grasp_pairs,
     rank_grasps,
@@ -117,12 +120,10 @@ def test_a_finger_pad_needs_a_patch():
     plane = np.stack(np.meshgrid(np.arange(-0.05, 0.05, S), np.arange(-0.05, 0.05, S)), -1)
     flat = np.column_stack([plane.reshape(-1, 2), np.zeros(plane.size // 2)])
     normals = np.tile([0.0, 0.0, 1.0], (len(flat), 1))
-    centre = int(np.argmin(np.linalg.norm(flat, axis=1)))
-    assert contact_patch_ok(flat, normals, centre)
+    centre = np.linalg.norm(flat, axis=1) == np.linalg.norm(flat, axis=1).min()
+    assert contact_patches(flat, normals, centre)[centre].all()
     strip = flat[np.abs(flat[:, 0]) < 0.01]  # 2 cm wide: too narrow for the 26 mm pad
-    assert not contact_patch_ok(
-        strip, normals[: len(strip)], int(np.argmin(np.linalg.norm(strip, axis=1)))
-    )
+    assert not contact_patches(strip, normals[: len(strip)], np.ones(len(strip), bool)).any()
 
 
 def test_grasps_near_the_centre_line_come_first():
@@ -173,3 +174,47 @@ def test_the_first_free_grasp_avoids_the_unexplored_region():
     shell = np.stack(np.meshgrid(g, g, np.arange(0.0, 0.3, 0.01)), -1).reshape(-1, 3)
     outside = (np.abs(shell[:, 0]) > 0.03) | (np.abs(shell[:, 1]) > 0.055) | (shell[:, 2] > 0.11)
     assert first_free_grasp(pts, shell[outside], pairs, order) is None
+
+
+def _clouds() -> list[np.ndarray]:
+    """Measured-looking clouds: the analytic shapes, jittered and turned (no lattice
+    ties), and a rendered view of a stand-in object."""
+    rng = np.random.default_rng(5)
+    shapes = [_box((0.04, 0.09, 0.10)), _cylinder(0.03, 0.10), _sphere(0.035)]
+    out = []
+    for pts in shapes:
+        a = rng.uniform(0, 2 * math.pi)
+        turn = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+        out.append(pts @ turn.T + rng.normal(0.0, 0.0008, pts.shape))
+    from heapgrasp.geometry.viewsphere import START
+    from heapgrasp.sim.viewsphere_objects import stand_in
+    from heapgrasp.sim.viewsphere_world import ViewsphereWorld
+
+    world = ViewsphereWorld(stand_in("005_tomato_soup_can"))
+    views = [START] + [world.sphere.move(START, d)[1] for d in range(0, 8, 2)]
+    out.append(world.object_points(views)[0])
+    return out
+
+
+@pytest.mark.parametrize("case", range(4))
+def test_the_core_agrees_with_the_numpy_reference(case):
+    pts = _clouds()[case]
+    normals, curvature = estimate_normals(pts)
+    want_n, want_c = ref.estimate_normals(pts)
+    np.testing.assert_allclose(np.abs(np.einsum("ij,ij->i", normals, want_n)), 1.0, atol=1e-6)
+    np.testing.assert_allclose(normals, want_n, atol=1e-6)
+    np.testing.assert_allclose(curvature, want_c, atol=1e-9)
+    usable = usable_contacts(pts, want_n, want_c)
+    want_u = ref.usable_contacts(pts, want_n, want_c)
+    # Rounding may move a projected point across a pixel edge: at most a few disagree.
+    assert usable.sum() > 0 and (usable != want_u).sum() <= max(2, usable.sum() // 100)
+    pairs = grasp_pairs(pts, want_n, want_u)
+    want = ref.grasp_pairs(pts, want_n, want_u)
+    got = {(int(i), int(j)): (q, w) for i, j, q, w in zip(*dataclasses.astuple(pairs), strict=True)}
+    exp = {(int(i), int(j)): (q, w) for i, j, q, w in zip(*dataclasses.astuple(want), strict=True)}
+    # Pairs on the quality threshold may go either way.
+    edge = {k for k, (q, _) in (got | exp).items() if abs(q - 150.0) < 1e-9}
+    assert set(got) - edge == set(exp) - edge and len(exp) > 0
+    for k in set(got) & set(exp):
+        np.testing.assert_allclose(got[k], exp[k], rtol=0, atol=1e-9)
+    assert list(got) == sorted(got)

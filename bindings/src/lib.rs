@@ -16,6 +16,7 @@ mod occupancy;
 mod raster;
 mod roofs;
 mod score;
+mod synthesis;
 mod tsdf;
 
 use pyo3::prelude::*;
@@ -47,6 +48,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(score::score_views, m)?)?;
     m.add_function(wrap_pyfunction!(antipodal::antipodal_grasps, m)?)?;
     m.add_function(wrap_pyfunction!(hand_points::hand_point_counts, m)?)?;
+    m.add_function(wrap_pyfunction!(synthesis::point_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(synthesis::contact_patches, m)?)?;
+    m.add_function(wrap_pyfunction!(synthesis::antipodal_pairs, m)?)?;
     m.add_function(wrap_pyfunction!(roofs::keep_silhouettes, m)?)?;
     m.add_function(wrap_pyfunction!(filter::gaussian_filter3d, m)?)?;
     m.add_function(wrap_pyfunction!(filter::maximum_filter3d, m)?)?;

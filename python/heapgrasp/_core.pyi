@@ -37,6 +37,8 @@ __all__ = [
     "UnknownMeshError",
     "__version__",
     "antipodal_grasps",
+    "antipodal_pairs",
+    "contact_patches",
     "gaussian_filter3d",
     "hand_point_counts",
     "keep_silhouettes",
@@ -44,6 +46,7 @@ __all__ = [
     "maximum_filter3d",
     "nms3d",
     "num_threads",
+    "point_normals",
     "score_views",
 ]
 
@@ -337,6 +340,50 @@ def hand_point_counts(
     ``points`` (P, 3) float64 world points, indexed in cells of ``cell`` metres
     (default 0.01). Returns (N,) counts (a point inside two of the hand's boxes counts
     twice). Runs on ``threads`` threads (0 or None: all) with the GIL released.
+    """
+
+def point_normals(
+    points: _F64, *, k: int | None = None, threads: int | None = None
+) -> tuple[_F64, _F64]:
+    """Unit normals and curvatures of a point cloud from each point's ``k`` nearest
+    points, itself included (seed 001's normals; PCL's ``NormalEstimation``).
+
+    ``points`` (N, 3) float64, N >= ``k``; ``k`` an int >= 3 (default 10). Returns the
+    (N, 3) normals (the covariance's eigenvector of the smallest eigenvalue, turned away
+    from the cloud's centroid) and the (N,) curvatures ``λ0 / (λ0 + λ1 + λ2)``.
+    """
+
+def contact_patches(
+    points: _F64,
+    normals: _F64,
+    candidates: npt.NDArray[np.bool_],
+    *,
+    threads: int | None = None,
+) -> npt.NDArray[np.bool_]:
+    """Whether a finger pad fits on the surface at each candidate point (seed 001's
+    contact patch: the points within ±5 mm along the normal and ±30 mm across it, at
+    1 px/mm; their convex hull in a disc of 18 px must hold a pixel 26 / 1.9 px from its
+    edge).
+
+    ``points``, ``normals`` (N, 3) float64 (unit normals); ``candidates`` (N,) bool.
+    Returns (N,) bool, False where not a candidate.
+    """
+
+def antipodal_pairs(
+    points: _F64,
+    normals: _F64,
+    usable: npt.NDArray[np.bool_],
+    *,
+    voxel: float,
+    max_width: float,
+    min_quality: float,
+    threads: int | None = None,
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], _F64, _F64]:
+    """Every pair ``i < j`` of usable points whose distance plus ``voxel`` is at most
+    ``max_width`` with quality ``180° − (A + B)`` at least ``min_quality`` (degrees, in
+    [0, 180]); ``A``, ``B`` the angles between the contact line and each normal.
+
+    Returns (first, second, quality, width), ordered by (i, j).
     """
 
 def keep_silhouettes(

@@ -41,6 +41,7 @@ pub mod raster;
 pub mod roofs;
 mod rounding;
 pub mod score;
+pub mod synthesis;
 pub mod tsdf;
 
 pub use camera::{poses_from_flat, PinholeCamera, Pose};
