@@ -1684,6 +1684,18 @@ def test_hand_point_counts(data):
         cell=cell,
         threads=threads,
     )
+    free = call(
+        "first_free_pose",
+        names,
+        _core.first_free_pose,
+        hand,
+        poses,
+        openings,
+        points,
+        cell=cell,
+        threads=threads,
+    )
+    assert ok(free) == ok(out), "first_free_pose and hand_point_counts disagree on validity"
     if not ok(out):
         assert plan.bad, "a valid call was refused"
         return
@@ -1693,6 +1705,8 @@ def test_hand_point_counts(data):
         hand, canonical(poses, np.float64), widths[: len(poses)], pts, threads=1
     )
     np.testing.assert_array_equal(out, again)
+    zeros = np.flatnonzero(out == 0)
+    assert free == (int(zeros[0]) if len(zeros) else None)
 
 
 # ----------------------------------------------- point_normals, contact_patches, pairs
@@ -1833,6 +1847,7 @@ def test_every_entry_point_is_fuzzed():
         "nms3d",
         "antipodal_grasps",
         "hand_point_counts",
+        "first_free_pose",
         "point_normals",
         "contact_patches",
         "antipodal_pairs",

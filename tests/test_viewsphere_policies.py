@@ -44,9 +44,16 @@ def test_breadth_first_asks_once_per_set_of_views_and_gives_up_after_max_steps()
         return False
 
     episode = breadth_first(never, max_steps=3)
-    assert not episode.found and episode.steps == 3
+    assert not episode.found and episode.steps == 3 and episode.complete
     assert len(asked) == len(set(asked))  # each distinct set once
     assert breadth_first(lambda keys: True).steps == 0
+    # A budget of sets stops the search, marked incomplete; a larger one changes nothing.
+    asked.clear()
+    cut = breadth_first(never, max_steps=3, max_sets=20)
+    assert len(asked) == 20 and not cut.found and not cut.complete and cut.steps == 3
+    assert breadth_first(_low_view, max_sets=1000) == breadth_first(_low_view)
+    with pytest.raises(ValueError, match="max_sets"):
+        breadth_first(never, max_sets=0)
 
 
 def test_breadth_first_is_no_worse_than_any_policy():

@@ -47,3 +47,28 @@ def test_a_sphere_wider_than_the_hand_yields_nothing():
         world.grasp([])
     with pytest.raises(ValueError, match="at least one mesh"):
         ViewsphereWorld([])
+
+
+def test_the_config_checks_its_values_and_round_trips():
+    from heapgrasp.loop.viewsphere import ViewsphereConfig
+
+    config = ViewsphereConfig(voxel=0.01, max_steps=4)
+    assert ViewsphereConfig.from_dict(config.to_dict()) == config
+    assert config.sphere().radius == 0.40 and abs(config.start.polar - np.pi / 7) < 1e-12
+    with pytest.raises(ValueError, match=r"unknown viewsphere setting.*voxels"):
+        ViewsphereConfig.from_dict({"voxels": 0.01})
+    for bad in ({"voxel": 0.0}, {"max_steps": -1}, {"min_range": 4.0}, {"radius": float("nan")}):
+        with pytest.raises(ValueError, match="ViewsphereConfig"):
+            ViewsphereConfig(**bad)
+
+
+def test_each_set_of_views_is_synthesised_once():
+    world = ViewsphereWorld([_on_table(trimesh.creation.box(extents=(0.04, 0.09, 0.10)))])
+    sphere = world.sphere
+    one = sphere.move(START, 4)[1]
+    first = world.grasp([START, one])
+    assert world.grasps.sets_evaluated == 1
+    assert world.grasp([START, one, START]) is first  # the same set: cached
+    assert world.grasps.sets_evaluated == 1
+    world.grasp([START])
+    assert world.grasps.sets_evaluated == 2

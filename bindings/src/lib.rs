@@ -48,6 +48,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(score::score_views, m)?)?;
     m.add_function(wrap_pyfunction!(antipodal::antipodal_grasps, m)?)?;
     m.add_function(wrap_pyfunction!(hand_points::hand_point_counts, m)?)?;
+    m.add_function(wrap_pyfunction!(hand_points::first_free_pose, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::point_normals, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::contact_patches, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::antipodal_pairs, m)?)?;

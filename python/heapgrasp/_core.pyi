@@ -39,6 +39,7 @@ __all__ = [
     "antipodal_grasps",
     "antipodal_pairs",
     "contact_patches",
+    "first_free_pose",
     "gaussian_filter3d",
     "hand_point_counts",
     "keep_silhouettes",
@@ -384,6 +385,22 @@ def antipodal_pairs(
     [0, 180]); ``A``, ``B`` the angles between the contact line and each normal.
 
     Returns (first, second, quality, width), ordered by (i, j).
+    """
+
+def first_free_pose(
+    hand: Mapping[str, Any],
+    tcp2world: _F64,
+    openings: _F64,
+    points: _F64,
+    *,
+    cell: float | None = None,
+    threads: int | None = None,
+) -> int | None:
+    """The index of the first pose at which the hand holds none of ``points``, or None.
+
+    The arguments are :func:`hand_point_counts`'; the answer is the first ``i`` with
+    ``hand_point_counts(...)[i] == 0``, found with each pose's search stopped at its
+    first point and the poses after the answer left unchecked.
     """
 
 def keep_silhouettes(

@@ -117,8 +117,9 @@ impl PointIndex {
         self.len == 0
     }
 
-    /// Points strictly inside the box `b` (TCP frame) of the hand at `tcp2world`.
-    fn count_in_box(&self, tcp2world: &Pose, world2tcp: &Pose, b: &HandBox) -> u32 {
+    /// Points strictly inside the box `b` (TCP frame) of the hand at `tcp2world`,
+    /// counted up to `limit` (the search stops there).
+    fn count_in_box(&self, tcp2world: &Pose, world2tcp: &Pose, b: &HandBox, limit: u32) -> u32 {
         let (lo, hi) = b;
         let mut wlo = [f64::INFINITY; 3];
         let mut whi = [f64::NEG_INFINITY; 3];
@@ -136,13 +137,14 @@ impl PointIndex {
         }
         let klo = Self::key(self.cell, &wlo);
         let khi = Self::key(self.cell, &whi);
-        let inside = |points: &[[f64; 3]]| -> u32 {
+        let inside = |points: &[[f64; 3]], most: u32| -> u32 {
             let n = points
                 .iter()
                 .filter(|p| {
                     let q = world2tcp.transform_point(&Point3::new(p[0], p[1], p[2]));
                     (0..3).all(|k| q[k] > lo[k] && q[k] < hi[k])
                 })
+                .take(most as usize)
                 .count();
             u32::try_from(n).unwrap_or(u32::MAX)
         };
@@ -155,7 +157,10 @@ impl PointIndex {
         if span > self.cells.len() as f64 {
             for (key, points) in &self.cells {
                 if (0..3).all(|k| key[k] >= klo[k] && key[k] <= khi[k]) {
-                    count = count.saturating_add(inside(points));
+                    count = count.saturating_add(inside(points, limit - count));
+                    if count >= limit {
+                        return count;
+                    }
                 }
             }
             return count;
@@ -164,7 +169,10 @@ impl PointIndex {
             for y in klo[1]..=khi[1] {
                 for z in klo[2]..=khi[2] {
                     if let Some(points) = self.cells.get(&[x, y, z]) {
-                        count = count.saturating_add(inside(points));
+                        count = count.saturating_add(inside(points, limit - count));
+                        if count >= limit {
+                            return count;
+                        }
                     }
                 }
             }
@@ -207,12 +215,66 @@ pub fn hand_point_counts(
                 let inverse = pose.inverse();
                 boxes[i]
                     .iter()
-                    .map(|b| index.count_in_box(pose, &inverse, b))
-                    .sum::<u32>()
+                    .map(|b| index.count_in_box(pose, &inverse, b, u32::MAX))
+                    .fold(0u32, u32::saturating_add)
             })
             .collect::<Vec<_>>()
     });
     Ok(counts.concat())
+}
+
+/// Poses per block of [`first_free`]: the blocks run in parallel, in order, and the
+/// search stops after the first block that holds a free pose.
+const FREE_BLOCK: usize = 64;
+
+/// The index of the first pose `tcp2world[i]` (fingers `openings[i]` apart) at which the
+/// hand holds none of the indexed points, or None: [`hand_point_counts`]` == 0`, with
+/// each pose's search stopped at its first point and the poses after the first free one
+/// left unchecked, on `threads` threads (0: [`parallel::num_threads`]).
+pub fn first_free(
+    hand: &HandGeometry,
+    tcp2world: &[Pose],
+    openings: &[f64],
+    index: &PointIndex,
+    threads: usize,
+) -> Result<Option<usize>> {
+    if openings.len() != tcp2world.len() {
+        return Err(Error::Shape {
+            name: "openings".into(),
+            expected: format!("({},)", tcp2world.len()),
+            got: format!("({},)", openings.len()),
+        });
+    }
+    let boxes = openings
+        .iter()
+        .map(|&w| hand_boxes(hand, w))
+        .collect::<Result<Vec<_>>>()?;
+    let threads = if threads == 0 {
+        parallel::num_threads()
+    } else {
+        threads
+    }
+    .max(1);
+    let free = |i: usize| {
+        let pose = &tcp2world[i];
+        let inverse = pose.inverse();
+        boxes[i]
+            .iter()
+            .all(|b| index.count_in_box(pose, &inverse, b, 1) == 0)
+    };
+    let mut start = 0;
+    while start < tcp2world.len() {
+        let end = (start + FREE_BLOCK * threads).min(tcp2world.len());
+        let parts = threads.min((end - start).div_ceil(FREE_BLOCK)).max(1);
+        let found = parallel::map_ranges(end - start, parts, |range| {
+            range.map(|k| start + k).find(|&i| free(i))
+        });
+        if let Some(i) = found.into_iter().flatten().min() {
+            return Ok(Some(i));
+        }
+        start = end;
+    }
+    Ok(None)
 }
 
 #[cfg(test)]
@@ -303,6 +365,41 @@ mod tests {
         let b = hand_point_counts(&hand, &poses, &widths, &tiny, 1).expect("valid");
         assert_eq!(a, b);
         assert_eq!(a, vec![2, 0]);
+    }
+
+    #[test]
+    fn the_first_free_pose_is_the_first_zero_count() {
+        let hand = HandGeometry::panda();
+        let mut points = Vec::new();
+        for i in 0..400 {
+            let t = i as f64 * 0.618_033_988_749_895;
+            points.extend([
+                (t * 0.31).fract() * 0.2 - 0.1,
+                (t * 0.57).fract() * 0.2 - 0.1,
+                0.0,
+            ]);
+        }
+        let index = PointIndex::new(&points, 0.01).expect("valid");
+        // Poses over the points' slab, lower and lower: the later ones collide... and
+        // then poses far above it, which are free.
+        let mut poses: Vec<Pose> = (0..300)
+            .map(|i| translation(0.0, 0.0, 0.05 - i as f64 * 1e-4))
+            .collect();
+        poses.extend((0..10).map(|i| translation(0.0, 0.0, 0.5 + i as f64)));
+        let openings = vec![0.08; poses.len()];
+        let counts = hand_point_counts(&hand, &poses, &openings, &index, 1).expect("valid");
+        let want = counts.iter().position(|&c| c == 0);
+        for threads in [1, 2, 5] {
+            let got = first_free(&hand, &poses, &openings, &index, threads).expect("valid");
+            assert_eq!(got, want);
+        }
+        assert!(
+            want.is_some_and(|w| w > 0),
+            "{want:?}: the first poses collide"
+        );
+        let none = first_free(&hand, &poses[..1], &openings[..1], &index, 1).expect("valid");
+        assert_eq!(none, counts[..1].iter().position(|&c| c == 0));
+        assert!(first_free(&hand, &poses, &openings[..3], &index, 1).is_err());
     }
 
     #[test]

@@ -100,11 +100,17 @@ def voxel_downsample(points: npt.ArrayLike, voxel: float) -> F64:
     if not np.isfinite(pts).all():
         raise ValueError("points hold NaN or infinity")
     keys = np.floor(pts / voxel).astype(np.int64)
-    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    keys -= keys.min(axis=0)
+    span = keys.max(axis=0) + 1
+    if float(np.prod(span.astype(np.float64))) < 2.0**62:
+        # One integer per cell, in the cells' lexicographic order: a 1-D unique.
+        flat = (keys[:, 0] * span[1] + keys[:, 1]) * span[2] + keys[:, 2]
+        _, inverse = np.unique(flat, return_inverse=True)
+    else:  # a cloud too wide for one integer key
+        _, inverse = np.unique(keys, axis=0, return_inverse=True)
     inverse = inverse.reshape(-1)
     counts = np.bincount(inverse).astype(np.float64)
-    sums = np.zeros((len(first), 3))
-    np.add.at(sums, inverse, pts)
+    sums = np.column_stack([np.bincount(inverse, weights=pts[:, k]) for k in range(3)])
     out: F64 = sums / counts[:, None]
     return out
 

@@ -22,7 +22,7 @@ grasp on the object's points (:mod:`heapgrasp.perception.clouds`):
 
 5. **Collision check** (:func:`first_free_grasp`): in that order, the first grasp whose
    hand holds none of the object's and the unexplored region's points
-   (:func:`heapgrasp.hand_point_counts`, the Rust core) at the contacts' midpoint, the
+   (:func:`heapgrasp.first_free_pose`, the Rust core) at the contacts' midpoint, the
    fingers closing along the contact line, with the approach turned about that line
    through the public code's 8 pitches (from above first, then 45° and 135° off, ...).
 
@@ -33,22 +33,24 @@ Steps 1–3 run in the Rust core (``heapgrasp._core.point_normals``, ``contact_p
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp import antipodal_pairs, contact_patches, hand_point_counts, point_normals
+from heapgrasp import antipodal_pairs, contact_patches, first_free_pose, point_normals
 from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
 
 __all__ = [
     "PITCHES_DEG",
     "GraspPairs",
+    "candidate_contacts",
     "estimate_normals",
     "first_free_grasp",
     "grasp_pairs",
     "grasp_pose",
+    "grasp_poses",
+    "patched_pairs",
     "rank_grasps",
     "usable_contacts",
 ]
@@ -82,17 +84,34 @@ def estimate_normals(points: npt.ArrayLike, k: int = 10) -> tuple[F64, F64]:
     return point_normals(pts, k=k)
 
 
+def candidate_contacts(
+    points: npt.ArrayLike,
+    curvature: npt.ArrayLike,
+    *,
+    factor: float = 2.0,
+    min_height: float = 0.01,
+) -> Bool:
+    """``(N,)`` True for the points flat enough (curvature at most ``factor`` times the
+    mean) and high enough (``min_height`` above the lowest point) to touch (module doc,
+    step 2, before the contact patch)."""
+    pts = _cloud(points)
+    curv = np.asarray(curvature, dtype=np.float64)
+    if curv.shape != (len(pts),):
+        raise ValueError(f"curvature must be ({len(pts)},), got shape {curv.shape}")
+    if len(pts) == 0:
+        return np.zeros(0, dtype=bool)
+    ok: Bool = (curv <= factor * float(curv.mean())) & (
+        pts[:, 2] >= float(pts[:, 2].min()) + min_height
+    )
+    return ok
+
+
 def usable_contacts(
     points: npt.ArrayLike, normals: npt.ArrayLike, curvature: npt.ArrayLike
 ) -> Bool:
     """``(N,)`` True for the points a finger may touch (module doc, step 2)."""
     pts = _cloud(points)
-    curv = np.asarray(curvature, dtype=np.float64)
-    if curv.shape != (len(pts),):
-        raise ValueError(f"curvature must be ({len(pts)},), got shape {curv.shape}")
-    candidates = (curv <= 2.0 * float(curv.mean())) if len(curv) else curv.astype(bool)
-    candidates &= pts[:, 2] >= float(pts[:, 2].min(initial=0.0)) + 0.01
-    return contact_patches(pts, _cloud(normals, "normals"), candidates)
+    return contact_patches(pts, _cloud(normals, "normals"), candidate_contacts(pts, curvature))
 
 
 @dataclass(frozen=True)
@@ -131,6 +150,33 @@ def grasp_pairs(
     return GraspPairs(first, second, quality, width)
 
 
+def patched_pairs(
+    points: npt.ArrayLike,
+    normals: npt.ArrayLike,
+    candidates: npt.ArrayLike,
+    *,
+    voxel: float = 0.0075,
+    max_width: float = 0.08,
+    min_quality: float = 150.0,
+) -> GraspPairs:
+    """:func:`grasp_pairs` of :func:`usable_contacts`, with the contact patch checked
+    only at the points some pair of ``candidates`` touches (the same pairs, for a
+    fraction of the patch tests)."""
+    pts = _cloud(points)
+    nrm = _cloud(normals, "normals")
+    pairs = grasp_pairs(
+        pts, nrm, candidates, voxel=voxel, max_width=max_width, min_quality=min_quality
+    )
+    if len(pairs) == 0:
+        return pairs
+    touched = np.zeros(len(pts), dtype=bool)
+    touched[pairs.first] = True
+    touched[pairs.second] = True
+    patch = contact_patches(pts, nrm, touched)
+    keep = patch[pairs.first] & patch[pairs.second]
+    return GraspPairs(pairs.first[keep], pairs.second[keep], pairs.quality[keep], pairs.width[keep])
+
+
 def rank_grasps(points: npt.ArrayLike, pairs: GraspPairs, centroid: npt.ArrayLike) -> I64:
     """The order to try ``pairs`` in (module doc, step 4): indices into ``pairs``."""
     pts = _cloud(points)
@@ -148,24 +194,38 @@ def rank_grasps(points: npt.ArrayLike, pairs: GraspPairs, centroid: npt.ArrayLik
     return order
 
 
-def grasp_pose(p1: F64, p2: F64, pitch: float) -> F64:
-    """``(4, 4)`` TCP pose at the midpoint of contacts ``p1``, ``p2``: fingers closing
-    along the contact line (TCP y), the approach (TCP z) horizontal at ``pitch = 0`` and
-    turned by ``pitch`` (radians) about the contact line; ``π/2`` comes from above when
-    the line is level."""
-    y = np.asarray(p1, dtype=np.float64) - np.asarray(p2, dtype=np.float64)
-    y /= np.linalg.norm(y)
-    z0 = np.cross(y, [0.0, 0.0, 1.0])
-    if np.linalg.norm(z0) < 1e-9:  # a vertical contact line: any horizontal approach
-        z0 = np.cross(y, [1.0, 0.0, 0.0])
-    z0 /= np.linalg.norm(z0)
+def grasp_poses(p1: npt.ArrayLike, p2: npt.ArrayLike, pitch: npt.ArrayLike) -> F64:
+    """``(N, 4, 4)`` TCP poses at the midpoints of contacts ``p1[i]``, ``p2[i]``
+    (``(N, 3)`` each): fingers closing along the contact line (TCP y), the approach
+    (TCP z) horizontal at ``pitch = 0`` and turned by ``pitch[i]`` (radians) about the
+    contact line; ``π/2`` comes from above when the line is level."""
+    a = np.asarray(p1, dtype=np.float64).reshape(-1, 3)
+    b = np.asarray(p2, dtype=np.float64).reshape(-1, 3)
+    t = np.broadcast_to(np.asarray(pitch, dtype=np.float64), (len(a),))
+    y = a - b
+    y /= np.linalg.norm(y, axis=1, keepdims=True)
+    z0 = np.column_stack([y[:, 1], -y[:, 0], np.zeros(len(y))])  # y × (0, 0, 1)
+    vertical = np.linalg.norm(z0, axis=1) < 1e-9
+    if vertical.any():  # a vertical contact line: any horizontal approach, y × (1, 0, 0)
+        yv = y[vertical]
+        z0[vertical] = np.column_stack([np.zeros(len(yv)), yv[:, 2], -yv[:, 1]])
+    z0 /= np.linalg.norm(z0, axis=1, keepdims=True)
     x0 = np.cross(y, z0)
     # Turning z0 toward x0 = y × z0 = -(down) for a level line: pitch π/2 is from above.
-    z = math.cos(pitch) * z0 + math.sin(pitch) * x0
-    pose = np.eye(4)
-    pose[:3, :3] = np.column_stack([np.cross(y, z), y, z])
-    pose[:3, 3] = (np.asarray(p1) + np.asarray(p2)) / 2.0
-    return pose
+    z = np.cos(t)[:, None] * z0 + np.sin(t)[:, None] * x0
+    poses = np.zeros((len(a), 4, 4))
+    poses[:, :3, 0] = np.cross(y, z)
+    poses[:, :3, 1] = y
+    poses[:, :3, 2] = z
+    poses[:, :3, 3] = (a + b) / 2.0
+    poses[:, 3, 3] = 1.0
+    return poses
+
+
+def grasp_pose(p1: npt.ArrayLike, p2: npt.ArrayLike, pitch: float) -> F64:
+    """One pose of :func:`grasp_poses`: ``(4, 4)``."""
+    out: F64 = grasp_poses(p1, p2, pitch)[0]
+    return out
 
 
 def first_free_grasp(
@@ -175,30 +235,24 @@ def first_free_grasp(
     order: npt.ArrayLike,
     *,
     gripper: GripperGeometry = PANDA_HAND,
-    batch: int = 128,
+    batch: int = 8192,
 ) -> tuple[int, F64] | None:
     """The first pair of ``order`` (and its TCP pose) at which, for one of
-    :data:`PITCHES_DEG` in turn, the hand holds none of ``points`` and ``unexplored``;
-    None when every one collides. The fingers are ``pairs.width`` apart (at most the
-    hand's opening)."""
+    :data:`PITCHES_DEG` in turn, the hand holds none of ``points`` and ``unexplored``
+    (the core's ``first_free_pose``, ``batch`` pairs a call); None when every one
+    collides. The fingers are ``pairs.width`` apart (at most the hand's opening)."""
     pts = _cloud(points)
     obstacles = np.vstack([pts, _cloud(unexplored, "unexplored").reshape(-1, 3)])
     ranked = np.asarray(order, dtype=np.int64)
     hand = dataclasses.asdict(gripper)
-    pitches = [math.radians(p) for p in PITCHES_DEG]
+    pitches = np.radians(np.asarray(PITCHES_DEG, dtype=np.float64))
     for start in range(0, len(ranked), batch):
         chunk = ranked[start : start + batch]
-        poses = np.stack(
-            [
-                grasp_pose(pts[pairs.first[k]], pts[pairs.second[k]], pitch)
-                for k in chunk
-                for pitch in pitches
-            ]
-        )
+        first = np.repeat(pts[pairs.first[chunk]], len(pitches), axis=0)
+        second = np.repeat(pts[pairs.second[chunk]], len(pitches), axis=0)
+        poses = grasp_poses(first, second, np.tile(pitches, len(chunk)))
         widths = np.repeat(np.minimum(pairs.width[chunk], gripper.max_opening), len(pitches))
-        counts = hand_point_counts(hand, poses, widths, obstacles)
-        free = np.flatnonzero(counts == 0)
-        if len(free):
-            first = int(free[0])
-            return int(chunk[first // len(pitches)]), poses[first]
+        free = first_free_pose(hand, poses, widths, obstacles)
+        if free is not None:
+            return int(chunk[free // len(pitches)]), poses[free]
     return None

@@ -117,6 +117,8 @@ class Episode:
     directions: tuple[int, ...]
     steps: int
     found: bool
+    complete: bool = True
+    """False when a search stopped at its budget before an answer (not found)."""
 
 
 def run_episode(
@@ -155,20 +157,31 @@ def breadth_first(
     sphere: DiscreteViewsphere | None = None,
     start: SpherePose = START,
     max_steps: int = 6,
+    max_sets: int | None = None,
 ) -> Episode:
     """The fewest moves from ``start`` to a set of visited poses for which
     ``grasp_found`` holds (ties: the first in direction order, level by level), asking
-    ``grasp_found`` once per distinct set; ``found`` False after ``max_steps`` levels."""
+    ``grasp_found`` once per distinct set; ``found`` False after ``max_steps`` levels.
+
+    ``max_sets`` bounds the distinct sets asked about (the levels grow about sevenfold
+    each): past it the search stops, not found, with ``complete`` False."""
     if not (isinstance(max_steps, int) and max_steps >= 0):
         raise ValueError(f"max_steps must be an int >= 0, got {max_steps!r}")
+    if max_sets is not None and not (isinstance(max_sets, int) and max_sets >= 1):
+        raise ValueError(f"max_sets must be an int >= 1 or None, got {max_sets!r}")
     sphere = DiscreteViewsphere() if sphere is None else sphere
     if not sphere.valid(start):
         raise ValueError(f"start {start} is not a valid pose of the viewsphere")
     answers: dict[frozenset[PoseKey], bool] = {}
 
+    class _Budget(Exception):
+        pass
+
     def found(poses: Iterable[SpherePose]) -> bool:
         key = frozenset(pose_key(p) for p in poses)
         if key not in answers:
+            if max_sets is not None and len(answers) >= max_sets:
+                raise _Budget
             answers[key] = grasp_found(key)
         return answers[key]
 
@@ -176,20 +189,23 @@ def breadth_first(
     if found(frontier[0][0]):
         return Episode((start,), (), 0, True)
     seen = {(pose_key(start), frozenset([pose_key(start)]))}
-    for depth in range(1, max_steps + 1):
-        nxt_frontier = []
-        for poses, directions in frontier:
-            for d in range(len(DIRECTIONS)):
-                taken, nxt = sphere.move(poses[-1], d)
-                if taken != d:  # the fallback leads where another direction does
-                    continue
-                path = (*poses, nxt)
-                state = (pose_key(nxt), frozenset(pose_key(p) for p in path))
-                if state in seen:
-                    continue
-                seen.add(state)
-                if found(path):
-                    return Episode(path, (*directions, d), depth, True)
-                nxt_frontier.append((path, (*directions, d)))
-        frontier = nxt_frontier
+    try:
+        for depth in range(1, max_steps + 1):
+            nxt_frontier = []
+            for poses, directions in frontier:
+                for d in range(len(DIRECTIONS)):
+                    taken, nxt = sphere.move(poses[-1], d)
+                    if taken != d:  # the fallback leads where another direction does
+                        continue
+                    path = (*poses, nxt)
+                    state = (pose_key(nxt), frozenset(pose_key(p) for p in path))
+                    if state in seen:
+                        continue
+                    seen.add(state)
+                    if found(path):
+                        return Episode(path, (*directions, d), depth, True)
+                    nxt_frontier.append((path, (*directions, d)))
+            frontier = nxt_frontier
+    except _Budget:
+        return Episode((start,), (), max_steps, False, complete=False)
     return Episode((start,), (), max_steps, False)
