@@ -13,7 +13,7 @@ SIZES = {
     "003_cracker_box": (0.06, 0.158, 0.21),
     "005_tomato_soup_can": (0.066, 0.066, 0.101),
     "006_mustard_bottle": (0.05, 0.085, 0.175),
-    "008_pudding_box": (0.035, 0.089, 0.11),
+    "008_pudding_box": (0.035, 0.089, 0.11),  # standing on its end (110 mm tall)
     "010_potted_meat_can": (0.05, 0.082, 0.097),
     "013_apple": (0.075, 0.075, 0.075),
     "021_bleach_cleanser": (0.065, 0.098, 0.25),
@@ -52,3 +52,24 @@ def test_the_test_objects_are_the_protocols_and_unknown_names_are_refused():
     assert (hi - lo)[:2].max() > 0.09  # the handle sticks out of the 8 cm body
     with pytest.raises(ValueError, match="unknown object 'teapot'; known: 003_cracker_box"):
         stand_in("teapot")
+
+
+def test_the_pudding_box_stands_on_its_end_as_the_protocols_height_says():
+    lo, hi = _extents(stand_in("008_pudding_box"))
+    # The protocol's origin height, 0.06 m, is about half of 110 mm, not of 35 mm.
+    assert hi[2] - lo[2] == pytest.approx(0.11, abs=1e-6)
+    assert abs(REST_POSES["008_pudding_box"].z - (hi[2] - lo[2]) / 2) < 0.01
+
+
+def test_benchmark_objects_turn_about_the_vertical_and_check_their_size():
+    from heapgrasp.sim.viewsphere_objects import stand_ins
+
+    (can,) = stand_ins(["005_tomato_soup_can"])
+    assert can.yaw_range == REST_POSES["005_tomato_soup_can"].yaw_range
+    (box,) = stand_ins(["003_cracker_box"])
+    turned = box.posed(np.pi / 2)
+    lo, hi = _extents(turned)
+    np.testing.assert_allclose(hi - lo, [0.158, 0.06, 0.21], atol=1e-9)
+    box.check_size(0.15, 0.30)
+    with pytest.raises(ValueError, match="'003_cracker_box'.*larger than the workspace"):
+        box.check_size(0.05, 0.30)

@@ -12,7 +12,9 @@ its subcommand (and sets ``func``, the function that runs it, as a parser defaul
 * :mod:`heapgrasp.bench.grasp` -- ``heapgrasp bench grasp``: the analytic antipodal grasp
   planner on circle / dense Shape-from-Silhouette grids, one executed grasp per scene;
 * :mod:`heapgrasp.bench.compare` -- ``heapgrasp bench compare``: two finished runs on
-  the same scenes, success rates with intervals and their paired difference.
+  the same scenes, success rates with intervals and their paired difference;
+* :mod:`heapgrasp.bench.viewsphere` -- ``heapgrasp bench viewsphere``: seed 001's
+  active-vision benchmark (random, brick and BFS policies on the viewsphere).
 
 Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`.
 """
@@ -21,7 +23,7 @@ from __future__ import annotations
 
 import argparse
 
-from heapgrasp.bench import carve, compare, grasp, sim, world
+from heapgrasp.bench import carve, compare, grasp, sim, viewsphere, world
 
 __all__ = ["add_parser"]
 
@@ -55,4 +57,5 @@ def add_parser(
     sim.add_parser(benches)
     grasp.add_parser(benches)
     compare.add_parser(benches)
+    viewsphere.add_parser(benches)
     return p

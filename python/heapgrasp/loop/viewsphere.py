@@ -102,12 +102,15 @@ class ViewsphereConfig:
     """No contact this close to the object's lowest point."""
     min_quality_deg: float = 150.0
     """A pair's least quality ``180° − (A + B)``."""
+    bfs_max_sets: int = 600
+    """Breadth-first search's budget: distinct sets of views synthesised per episode
+    (about three levels of the search); past it the pose counts as not found."""
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if f.name in ("max_steps", "neighbours"):
-                low = 0 if f.name == "max_steps" else 3
+            if f.name in ("max_steps", "neighbours", "bfs_max_sets"):
+                low = {"max_steps": 0, "neighbours": 3, "bfs_max_sets": 1}[f.name]
                 if not (isinstance(value, int) and not isinstance(value, bool) and value >= low):
                     raise ValueError(f"ViewsphereConfig.{f.name} must be an int >= {low}")
                 continue

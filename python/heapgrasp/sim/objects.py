@@ -1152,6 +1152,7 @@ def user_models(
     test_fraction: float = 0.2,
     max_extent: float | None = None,
     on_skip: Callable[[str], None] | None = None,
+    on_bad: Callable[[str, str], None] | None = None,
 ) -> list[ObjectModel]:
     """Models of the user's objects in a directory.
 
@@ -1193,6 +1194,9 @@ def user_models(
     on_skip : callable, optional
         Called with a message naming each subfolder that holds no object; default
         :func:`warnings.warn`.
+    on_bad : callable, optional
+        Called with ``(name, problem)`` for each object that cannot be used, which is
+        then left out; by default such objects are an error (below).
 
     Returns
     -------
@@ -1245,6 +1249,9 @@ def user_models(
                 max_extent,
             )
         except (ValueError, OSError) as exc:
+            if on_bad is not None:
+                on_bad(name, f"{path.relative_to(folder)}: {exc}")
+                continue
             problems.append(f"{path.relative_to(folder)}: {exc}")
             continue
         models.append(model)

@@ -3,25 +3,42 @@
 The YCB meshes of seed ``001_95c7dd5c6a7c3646.txt`` cannot be downloaded here, so each
 test object is a procedural stand-in of its published size, built from closed meshes
 (:mod:`trimesh.creation`) and already in the resting pose the protocol gives it
-(:data:`~heapgrasp.sim.viewsphere_protocol.REST_POSES`: the pudding box and the drill lie
-on their sides), its lowest point on the table (``z = 0``) and centred on the vertical
-axis. The drill and the toy airplane part are plausible composites of boxes and
+(:data:`~heapgrasp.sim.viewsphere_protocol.REST_POSES`: the drill lies on its side, the
+pudding box stands on its end), its lowest point on the table (``z = 0``) and centred on
+the vertical axis. The drill and the toy airplane part are plausible composites of boxes and
 cylinders. The training objects of §4.3 are the three prisms, a handle, a gasket and a
-cinder block. Real meshes come in through ``--object-dir``; nothing here is tuned to.
+cinder block. Real meshes come in through ``--object-dir`` (:func:`user_objects`);
+nothing here is tuned to.
+
+A benchmark object (:class:`ViewsphereObject`) is its meshes at rest and the range of
+yaws its poses take (:func:`~heapgrasp.sim.viewsphere_protocol.protocol_yaws`);
+:meth:`ViewsphereObject.posed` turns it by one of them.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 import trimesh
 from trimesh import creation
 
-from heapgrasp.sim.objects import _revolve
+from heapgrasp.sim.objects import _revolve, load_mesh, user_models
+from heapgrasp.sim.viewsphere_protocol import REST_POSES
 
-__all__ = ["TEST_OBJECTS", "TRAIN_OBJECTS", "Mesh", "stand_in"]
+__all__ = [
+    "TEST_OBJECTS",
+    "TRAIN_OBJECTS",
+    "Mesh",
+    "ViewsphereObject",
+    "stand_in",
+    "stand_ins",
+    "user_objects",
+]
 
 Mesh = tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]
 
@@ -137,7 +154,10 @@ TEST_OBJECTS: dict[str, Callable[[], list[trimesh.Trimesh]]] = {
     "003_cracker_box": lambda: [_box(0.06, 0.158, 0.21)],
     "005_tomato_soup_can": lambda: [_cylinder(0.066, 0.101)],
     "006_mustard_bottle": lambda: [_box(0.05, 0.085, 0.175)],
-    "008_pudding_box": lambda: [_box(0.11, 0.089, 0.035)],
+    # Standing on its 35 × 89 mm end: the protocol puts its origin 0.06 m above the
+    # table, about half its 110 mm length (as the cracker box's 0.106 m is half its
+    # 210 mm height); lying on its 110 × 89 mm face it could not be grasped at all.
+    "008_pudding_box": lambda: [_box(0.035, 0.089, 0.11)],
     "010_potted_meat_can": lambda: [_box(0.05, 0.097, 0.082)],
     "013_apple": lambda: [_sphere(0.075)],
     "021_bleach_cleanser": lambda: [_box(0.098, 0.065, 0.25)],
@@ -175,3 +195,122 @@ def stand_in(name: str) -> list[Mesh]:
         (np.asarray(p.vertices, dtype=np.float64) + shift, np.asarray(p.faces, dtype=np.int64))
         for p in parts
     ]
+
+
+@dataclass(frozen=True)
+class ViewsphereObject:
+    """One benchmark object: its meshes resting on the table (``z = 0``) centred on the
+    vertical axis, the range of its yaws (89, 179 or 359 degrees) and where it came
+    from (``"stand-in"`` or the user's folder)."""
+
+    name: str
+    meshes: tuple[Mesh, ...]
+    yaw_range: int
+    source: str
+
+    def posed(self, yaw: float) -> list[Mesh]:
+        """The meshes turned by ``yaw`` (radians) about the vertical axis."""
+        c, s = math.cos(yaw), math.sin(yaw)
+        turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return [(v @ turn.T, f) for v, f in self.meshes]
+
+    def check_size(self, half_xy: float, height: float) -> None:
+        """ValueError naming the object when, at some yaw, it leaves the box where the
+        benchmark looks for the object's points (± ``half_xy`` around the centre, up to
+        ``height``)."""
+        v = np.vstack([m[0] for m in self.meshes])
+        reach = float(np.hypot(v[:, 0], v[:, 1]).max())
+        top = float(v[:, 2].max())
+        if reach > half_xy or top > height:
+            raise ValueError(
+                f"object {self.name!r} reaches {reach:.3f} m from the centre and "
+                f"{top:.3f} m high at rest; the workspace holds ±{half_xy:g} m and "
+                f"{height:g} m (is the mesh in millimetres? give its <mesh> elements "
+                'scale="0.001 0.001 0.001")'
+                if max(reach, top) > 1.0
+                else f"object {self.name!r} reaches {reach:.3f} m from the centre and "
+                f"{top:.3f} m high at rest, larger than the workspace (±{half_xy:g} m, "
+                f"{height:g} m high)"
+            )
+
+
+def _at_rest(meshes: Sequence[Mesh]) -> tuple[Mesh, ...]:
+    """The meshes shifted so their lowest point is at ``z = 0`` and their bounding box
+    is centred on the vertical axis."""
+    v = np.vstack([m[0] for m in meshes])
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    shift = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+    return tuple((np.asarray(m[0], dtype=np.float64) + shift, m[1]) for m in meshes)
+
+
+def stand_ins(names: Sequence[str] | None = None) -> list[ViewsphereObject]:
+    """The stand-ins named (default: the 12 test objects), each with its protocol's yaw
+    range (the training shapes: 0–359°)."""
+    chosen = list(TEST_OBJECTS) if names is None else list(names)
+    out = []
+    for name in chosen:
+        meshes = tuple(stand_in(name))
+        rest = REST_POSES.get(name)
+        out.append(
+            ViewsphereObject(name, meshes, 359 if rest is None else rest.yaw_range, "stand-in")
+        )
+    return out
+
+
+def _rotation(roll: float, pitch: float) -> npt.NDArray[np.float64]:
+    """``R_y(pitch) R_x(roll)``: PyBullet's Euler order with no yaw."""
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    out: npt.NDArray[np.float64] = ry @ rx
+    return out
+
+
+def _stable(
+    vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.int64]
+) -> npt.NDArray[np.float64]:
+    """The rotation of the mesh's most probable resting pose (trimesh's quasi-static
+    estimate on its convex hull)."""
+    mesh = trimesh.Trimesh(vertices, faces, process=True)
+    transforms, _ = trimesh.poses.compute_stable_poses(mesh)
+    if len(transforms) == 0:
+        return np.eye(3)
+    out: npt.NDArray[np.float64] = np.asarray(transforms[0], dtype=np.float64)[:3, :3]
+    return out
+
+
+def user_objects(
+    directory: Path | str,
+    cache_dir: Path | str,
+    *,
+    on_bad: Callable[[str, str], None],
+) -> list[ViewsphereObject]:
+    """The user's objects (:func:`heapgrasp.sim.objects.user_models`: a folder per
+    object with its ``model.urdf``, or mesh files) at rest: an object named like a
+    protocol object (e.g. ``003_cracker_box``) takes the protocol's roll, pitch and yaw
+    range (:data:`~heapgrasp.sim.viewsphere_protocol.REST_POSES`); any other rests in
+    its most stable pose, with yaws over 0–359°. Each object that cannot be used is
+    reported to ``on_bad(name, problem)`` and left out."""
+    models = user_models(
+        directory,
+        cache_dir,
+        test_fraction=1.0,
+        on_bad=lambda name, problem: on_bad(name.split("/", 1)[-1], problem),
+    )
+    out = []
+    for model in models:
+        stem = model.name.split("/", 1)[-1]
+        try:
+            v, f = load_mesh(model.visual_mesh)
+            rest = REST_POSES.get(stem)
+            turn = _stable(v, f) if rest is None else _rotation(rest.roll, rest.pitch)
+            meshes = _at_rest(
+                [(np.asarray(v, dtype=np.float64) @ turn.T, np.asarray(f, dtype=np.int64))]
+            )
+        except (ValueError, OSError) as exc:
+            on_bad(stem, str(exc))
+            continue
+        out.append(
+            ViewsphereObject(stem, meshes, 359 if rest is None else rest.yaw_range, str(directory))
+        )
+    return out

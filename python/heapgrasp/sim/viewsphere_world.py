@@ -2,8 +2,9 @@
 viewsphere.
 
 The object's meshes (world frame, resting on the table top at ``z = 0``) and a table
-slab are rendered by the Rust core's rasteriser (:class:`heapgrasp.MeshScene`, ideal
-depth as in the paper) with seed 001's camera
+slab are rendered by the Rust core's rasteriser (:class:`heapgrasp.MeshScene`; ideal depth as
+in the paper, or through our depth sensor's model for a transparent, specular or opaque
+object) with seed 001's camera
 (:data:`~heapgrasp.loop.viewsphere.SEED001_CAMERA`) from the poses of a
 :class:`~heapgrasp.geometry.viewsphere.DiscreteViewsphere` centred on the table's centre.
 Whether a set of views yields a grasp is :class:`~heapgrasp.loop.viewsphere.ViewsphereGrasps`'
@@ -27,7 +28,8 @@ from heapgrasp.loop.viewsphere import (
     ViewsphereConfig,
     ViewsphereGrasps,
 )
-from heapgrasp.planning.viewsphere_policies import PoseKey
+from heapgrasp.planning.viewsphere_policies import PoseKey, pose_key
+from heapgrasp.sim.optics import Category, DepthModel
 
 __all__ = ["SEED001_CAMERA", "FoundGrasp", "ViewsphereWorld"]
 
@@ -59,31 +61,54 @@ class ViewsphereWorld:
         *,
         config: ViewsphereConfig | None = None,
         camera: CameraSpec = SEED001_CAMERA,
+        sensor: Category | None = None,
+        depth_model: DepthModel | None = None,
+        seed: int = 0,
     ) -> None:
         if not meshes:
             raise ValueError("the world needs at least one mesh")
+        self.sensor = sensor
+        self.depth_model = DepthModel() if depth_model is None else depth_model
+        self.seed = seed
         self.config = ViewsphereConfig() if config is None else config
         self.sphere = self.config.sphere()
         self.camera = camera
         self.start = self.config.start
         self._scene = MeshScene()
+        self._object_ids: list[int] = []
         for k, (vertices, faces) in enumerate(meshes):
             v = np.ascontiguousarray(vertices, dtype=np.float64)
             f = np.ascontiguousarray(faces, dtype=np.int64)
             if v.ndim != 2 or v.shape[1] != 3 or not np.isfinite(v).all():
                 raise ValueError(f"meshes[{k}]: vertices must be finite (V, 3)")
-            self._scene.add_mesh(v, f, np.eye(4))
+            self._object_ids.append(self._scene.add_mesh(v, f, np.eye(4)))
         tv, tf = _table_mesh()
         self._scene.add_mesh(tv, tf, np.eye(4))
+        self._table = MeshScene()
+        self._table.add_mesh(tv, tf, np.eye(4))
         self._core_camera = camera.core()
         self.grasps = ViewsphereGrasps(
             self.render, sphere=self.sphere, camera=camera, config=self.config
         )
 
     def render(self, pose: SpherePose) -> npt.NDArray[np.float32]:
-        """The ideal depth image from ``pose`` (camera z, m; 0 where nothing is hit),
-        rendered anew (:meth:`depth` caches)."""
-        return self._scene.render_depth(self._core_camera, self.sphere.camera_pose(pose))
+        """The depth image from ``pose`` (camera z, m; 0 where nothing is measured),
+        rendered anew (:meth:`depth` caches): ideal, or through the depth sensor's model
+        with the object of optical category ``sensor``
+        (:class:`~heapgrasp.sim.optics.DepthModel`; its noise seeded by the world's seed
+        and the pose)."""
+        cam2world = self.sphere.camera_pose(pose)
+        ideal = self._scene.render_depth(self._core_camera, cam2world)
+        if self.sensor is None:
+            return ideal
+        labels = self._scene.render_labels(self._core_camera, cam2world)
+        category = np.where(
+            np.isin(labels, self._object_ids), list(Category).index(self.sensor), -1
+        ).astype(np.int8)
+        background = self._table.render_depth(self._core_camera, cam2world)
+        key = pose_key(pose)
+        rng = np.random.default_rng([self.seed, round(key[0] * 1e6), round(key[1] * 1e6)])
+        return self.depth_model.apply(rng, ideal, background, category)
 
     def depth(self, pose: SpherePose) -> npt.NDArray[np.float32]:
         """The view's depth image (rendered once)."""
