@@ -71,5 +71,5 @@ def test_benchmark_objects_turn_about_the_vertical_and_check_their_size():
     lo, hi = _extents(turned)
     np.testing.assert_allclose(hi - lo, [0.158, 0.06, 0.21], atol=1e-9)
     box.check_size(0.15, 0.30)
-    with pytest.raises(ValueError, match="'003_cracker_box'.*larger than the workspace"):
+    with pytest.raises(ValueError, match=r"'003_cracker_box'.*larger than the workspace"):
         box.check_size(0.05, 0.30)
