@@ -109,8 +109,8 @@ def _seen_reference(points, depth, cam2world, table_z):
         x, y, z = world2cam[:3, :3] @ p + world2cam[:3, 3]
         if z <= 0:
             continue
-        u = round(CAM.fx * x / z + CAM.cx)
-        v = round(CAM.fy * y / z + CAM.cy)
+        u = math.floor(CAM.fx * x / z + CAM.cx + 0.5)  # the core's pixel convention
+        v = math.floor(CAM.fy * y / z + CAM.cy + 0.5)
         if not (0 <= u < CAM.width and 0 <= v < CAM.height):
             continue
         m = depth[v, u]

@@ -1826,6 +1826,43 @@ def test_contact_patches_and_antipodal_pairs(data):
         assert quality.min() >= float(kw["min_quality"]) and quality.max() <= 180.0 + 1e-9
 
 
+# ------------------------------------------------------------------------- seen_empty
+@FUZZ
+@given(data=st.data())
+def test_seen_empty(data):
+    EXAMPLES_RUN["test_seen_empty"] += 1
+    names = ["points", "depth", "camera", "cam2world", "min_range", "max_range", "occlusion"]
+    names += ["floor_z", "threads"]
+    plan = Plan(data, names)
+    n = data.draw(st.integers(0, 30))
+    points, same, pts = cloud_arg(data, n, "points" in plan)
+    cam = data.draw(small_camera())
+    raw = np.asarray(
+        data.draw(
+            hnp.arrays(np.float32, (cam.height, cam.width), elements=st.floats(0.0, 2.0, width=32))
+        )
+    )
+    depth, depth_same = data.draw(maybe_array(raw, "depth" in plan))
+    camera = data.draw(camera_or_junk(cam, "camera" in plan))
+    pose, pose_valid = data.draw(pose_arg((0.0, 0.0, 0.0), 0.6, "cam2world" in plan))
+    kw = {
+        "min_range": data.draw(float_arg(st.floats(0.0, 0.5))) if "min_range" in plan else 0.1,
+        "max_range": data.draw(float_arg(st.floats(0.0, 5.0))) if "max_range" in plan else 3.0,
+        "occlusion": data.draw(float_arg(st.floats(0.0, 2.0))) if "occlusion" in plan else 0.99,
+        "floor_z": data.draw(float_arg(st.floats(-1.0, 1.0))) if "floor_z" in plan else -0.01,
+        "threads": data.draw(int_arg(0, 4096)) if "threads" in plan else None,
+    }
+    out = call("seen_empty", names, _core.seen_empty, points, depth, camera, pose, **kw)
+    if not ok(out):
+        assert plan.bad, "a valid call was refused"
+        return
+    assert same and depth_same and pose_valid
+    assert out.dtype == np.bool_ and out.shape == (n,)
+    kw["threads"] = 1
+    again = _core.seen_empty(pts, raw, cam, canonical(pose, np.float64), **kw)
+    np.testing.assert_array_equal(out, again)
+
+
 def test_every_entry_point_is_fuzzed():
     """The tests above cover every public name of the native module."""
     covered = {
@@ -1848,6 +1885,7 @@ def test_every_entry_point_is_fuzzed():
         "antipodal_grasps",
         "hand_point_counts",
         "first_free_pose",
+        "seen_empty",
         "point_normals",
         "contact_patches",
         "antipodal_pairs",

@@ -6,6 +6,7 @@
 
 mod antipodal;
 mod camera;
+mod clouds;
 mod convert;
 mod errors;
 mod filter;
@@ -49,6 +50,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(antipodal::antipodal_grasps, m)?)?;
     m.add_function(wrap_pyfunction!(hand_points::hand_point_counts, m)?)?;
     m.add_function(wrap_pyfunction!(hand_points::first_free_pose, m)?)?;
+    m.add_function(wrap_pyfunction!(clouds::seen_empty, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::point_normals, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::contact_patches, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::antipodal_pairs, m)?)?;

@@ -43,6 +43,7 @@ from heapgrasp._core import (
     num_threads,
     point_normals,
     score_views,
+    seen_empty,
 )
 
 __all__ = [
@@ -70,4 +71,5 @@ __all__ = [
     "num_threads",
     "point_normals",
     "score_views",
+    "seen_empty",
 ]

@@ -49,6 +49,7 @@ __all__ = [
     "num_threads",
     "point_normals",
     "score_views",
+    "seen_empty",
 ]
 
 __version__: str
@@ -401,6 +402,28 @@ def first_free_pose(
     The arguments are :func:`hand_point_counts`'; the answer is the first ``i`` with
     ``hand_point_counts(...)[i] == 0``, found with each pose's search stopped at its
     first point and the poses after the answer left unchecked.
+    """
+
+def seen_empty(
+    points: _F64,
+    depth: _F32,
+    camera: PinholeCamera,
+    cam2world: _F64,
+    *,
+    min_range: float,
+    max_range: float,
+    occlusion: float,
+    floor_z: float,
+    threads: int | None = None,
+) -> npt.NDArray[np.bool_]:
+    """Whether a depth view shows each world point to be empty (seed 001's unexplored
+    region).
+
+    ``points`` (N, 3) float64; ``depth`` (H, W) float32, the camera's size (m along the
+    optical axis). A point is seen empty when it projects into the image in front of the
+    camera, ``z >= floor_z``, and the depth at its pixel is missing (NaN or outside
+    ``[min_range, max_range]``) or beyond ``occlusion`` times its own depth. Points off
+    the image are not seen. Returns (N,) bool.
     """
 
 def keep_silhouettes(

@@ -26,6 +26,7 @@
 pub mod antipodal;
 pub mod camera;
 pub mod carve;
+pub mod clouds;
 pub mod error;
 pub mod filter;
 pub mod grasp_label;

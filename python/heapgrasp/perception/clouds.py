@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from heapgrasp import seen_empty
 from heapgrasp.geometry.camera import CameraSpec
 
 __all__ = [
@@ -224,22 +225,21 @@ class UnexploredRegion:
         min_range: float = MIN_RANGE,
         max_range: float = MAX_RANGE,
     ) -> npt.NDArray[np.bool_]:
-        """``(M,)`` True for the points the view shows to be empty (module doc)."""
+        """``(M,)`` True for the points the view shows to be empty (module doc; the
+        core's ``seen_empty``, pixels by :class:`heapgrasp.PinholeCamera`'s rounding)."""
         d = _depth(depth, camera)
         pose = _pose("cam2world", cam2world)
-        cam = (self.points - pose[:3, 3]) @ pose[:3, :3]
-        z = cam[:, 2]
-        front = z > 0.0
-        u = np.full(len(z), -1, dtype=np.int64)
-        v = np.full(len(z), -1, dtype=np.int64)
-        u[front] = np.round(camera.fx * cam[front, 0] / z[front] + camera.cx).astype(np.int64)
-        v[front] = np.round(camera.fy * cam[front, 1] / z[front] + camera.cy).astype(np.int64)
-        inside = front & (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
-        measured = np.full(len(z), np.nan)
-        measured[inside] = d[v[inside], u[inside]]
-        valid = _valid(measured, min_range, max_range)
-        empty = ~valid | (measured > OCCLUSION * z)
-        return inside & empty & (self.points[:, 2] >= self.table_z)
+        seen: npt.NDArray[np.bool_] = seen_empty(
+            np.ascontiguousarray(self.points, dtype=np.float64),
+            np.ascontiguousarray(d, dtype=np.float32),
+            camera.core(),
+            pose,
+            min_range=min_range,
+            max_range=max_range,
+            occlusion=OCCLUSION,
+            floor_z=self.table_z,
+        )
+        return seen
 
     def update(
         self,

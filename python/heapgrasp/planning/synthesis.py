@@ -55,6 +55,10 @@ __all__ = [
     "usable_contacts",
 ]
 
+#: The collision check's index cell (m): coarse cells find a point inside a colliding
+#: hand after few lookups (4 cm: 4-20x faster than 1 cm on the benchmark's clouds).
+_COLLISION_CELL = 0.04
+
 F64 = npt.NDArray[np.float64]
 Bool = npt.NDArray[np.bool_]
 I64 = npt.NDArray[np.int64]
@@ -252,7 +256,7 @@ def first_free_grasp(
         second = np.repeat(pts[pairs.second[chunk]], len(pitches), axis=0)
         poses = grasp_poses(first, second, np.tile(pitches, len(chunk)))
         widths = np.repeat(np.minimum(pairs.width[chunk], gripper.max_opening), len(pitches))
-        free = first_free_pose(hand, poses, widths, obstacles)
+        free = first_free_pose(hand, poses, widths, obstacles, cell=_COLLISION_CELL)
         if free is not None:
             return int(chunk[free // len(pitches)]), poses[free]
     return None
