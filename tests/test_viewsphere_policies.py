@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import math
 
+import numpy as np
 import pytest
 from heapgrasp.geometry.viewsphere import DIRECTIONS, START, DiscreteViewsphere
 from heapgrasp.planning.viewsphere_policies import (
@@ -93,3 +94,26 @@ def test_an_episode_stops_at_max_steps_and_counts_them():
         run_episode(BrickPolicy(), _low_view, max_steps=-1)
     with pytest.raises(ValueError, match="is not a valid pose"):
         breadth_first(_low_view, start=START._replace(polar=math.radians(89.0)))
+
+
+def test_a_policy_sees_the_fused_state_when_the_episode_has_one():
+    seen = []
+
+    class Looking:
+        name = "looking"
+
+        def reset(self, seed: int) -> None:
+            pass
+
+        def choose(self, state) -> int:
+            obj, unexplored = state.fused()
+            seen.append((len(state.visited), obj.shape, unexplored.shape))
+            return 0
+
+    def observe(poses):
+        return np.zeros((len(poses), 3)), np.ones((2 * len(poses), 3))
+
+    episode = run_episode(Looking(), lambda keys: False, max_steps=2, observe=observe)
+    assert seen == [(1, (1, 3), (2, 3)), (2, (2, 3), (4, 3))] and episode.steps == 2
+    with pytest.raises(ValueError, match="no fused state"):
+        run_episode(Looking(), lambda keys: False, max_steps=1)

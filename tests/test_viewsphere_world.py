@@ -72,3 +72,12 @@ def test_each_set_of_views_is_synthesised_once():
     assert world.grasps.sets_evaluated == 1
     world.grasp([START])
     assert world.grasps.sets_evaluated == 2
+
+
+def test_the_fused_state_is_the_object_and_the_unexplored_points():
+    world = ViewsphereWorld([_on_table(trimesh.creation.box(extents=(0.04, 0.09, 0.10)))])
+    one = world.sphere.move(START, 4)[1]
+    obj, unexplored = world.grasps.fused([START])
+    obj2, unexplored2 = world.grasps.fused([START, one])
+    assert len(obj2) >= len(obj) > 0  # a second view shows no less of the box
+    assert 0 < len(unexplored2) < len(unexplored)  # and explores more

@@ -138,6 +138,7 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
                 start=world.start,
                 max_steps=config.max_steps,
                 seed=task.seed * 1000 + task.pose,
+                observe=world.grasps.fused,
             )
         grasp = world.grasp(list(episode.poses)) if episode.found else None
         seconds = time.perf_counter() - t

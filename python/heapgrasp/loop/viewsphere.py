@@ -373,6 +373,11 @@ class ViewsphereGrasps:
             width=float(pairs.width[k]),
         )
 
+    def fused(self, poses: Sequence[SpherePose]) -> tuple[F64, F64]:
+        """The fused state a policy sees (:meth:`ViewState.fused`): the object's points
+        and the unexplored region's after ``poses``."""
+        return self.object_points(poses)[0], self.unexplored(poses)
+
     def grasp_found(self, keys: frozenset[PoseKey]) -> bool:
         """:func:`~heapgrasp.planning.viewsphere_policies.breadth_first`'s question for a
         set of pose keys: the configured start pose, which every set holds, first."""

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+import numpy.typing as npt
 
 from heapgrasp.geometry.viewsphere import (
     DIRECTIONS,
@@ -36,6 +37,7 @@ from heapgrasp.geometry.viewsphere import (
 __all__ = [
     "BrickPolicy",
     "Episode",
+    "Fused",
     "RandomPolicy",
     "ViewState",
     "ViewspherePolicy",
@@ -58,14 +60,27 @@ def pose_key(pose: SpherePose) -> PoseKey:
     return (azimuth, polar)
 
 
+#: The fused state of a set of views: the object's points and the unexplored region's
+#: points, ``(N, 3)`` and ``(M, 3)`` world coordinates.
+Fused = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]
+
+
 @dataclass(frozen=True)
 class ViewState:
     """What a policy sees: the camera's pose, the poses visited (in order, the current
-    one last) and the moves made so far."""
+    one last), the moves made so far, and (:meth:`fused`) what the views show."""
 
     pose: SpherePose
     visited: tuple[SpherePose, ...]
     step: int
+    observe: Callable[[tuple[SpherePose, ...]], Fused] | None = None
+    """The episode's perception, when it has one (computed only when asked)."""
+
+    def fused(self) -> Fused:
+        """The object's and the unexplored region's points after the visited views."""
+        if self.observe is None:
+            raise ValueError("this episode runs without perception: no fused state")
+        return self.observe(self.visited)
 
 
 @runtime_checkable
@@ -129,9 +144,11 @@ def run_episode(
     start: SpherePose = START,
     max_steps: int = 6,
     seed: int = 0,
+    observe: Callable[[tuple[SpherePose, ...]], Fused] | None = None,
 ) -> Episode:
     """Runs ``policy`` from ``start`` until ``grasp_found`` holds for the poses visited
-    or ``max_steps`` moves were made."""
+    or ``max_steps`` moves were made; ``observe`` gives the policy the fused state of
+    the views (:meth:`ViewState.fused`)."""
     if not (isinstance(max_steps, int) and max_steps >= 0):
         raise ValueError(f"max_steps must be an int >= 0, got {max_steps!r}")
     sphere = DiscreteViewsphere() if sphere is None else sphere
@@ -145,7 +162,8 @@ def run_episode(
             return Episode(tuple(poses), tuple(directions), len(directions), True)
         if len(directions) == max_steps:
             return Episode(tuple(poses), tuple(directions), max_steps, False)
-        wanted = policy.choose(ViewState(poses[-1], tuple(poses), len(directions)))
+        state = ViewState(poses[-1], tuple(poses), len(directions), observe)
+        wanted = policy.choose(state)
         taken, nxt = sphere.move(poses[-1], wanted)
         directions.append(taken)
         poses.append(nxt)
