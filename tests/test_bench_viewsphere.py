@@ -189,3 +189,14 @@ def test_the_sensor_model_drops_a_transparent_objects_depth() -> None:
     assert len(glass.object_points([start])[0]) < 0.6 * len(ideal.object_points([start])[0])
     again = ViewsphereWorld(meshes, sensor=Category.TRANSPARENT, seed=1)
     np.testing.assert_array_equal(glass.depth(start), again.depth(start))
+
+
+def test_ray_without_ray_is_a_clear_message(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sys
+
+    monkeypatch.setitem(sys.modules, "ray", None)  # importing it fails
+    args = ["--objects", "025_mug", "--poses", "1", "--no-execute", "--ray"]
+    assert _run(tmp_path / "run", *args) == 2
+    assert "pip install 'heapgrasp[ray]'" in capsys.readouterr().err

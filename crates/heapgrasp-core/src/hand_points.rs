@@ -181,16 +181,14 @@ impl PointIndex {
     }
 }
 
-/// For each pose `tcp2world[i]` with the fingers `openings[i]` apart, how many indexed
-/// points lie inside the hand (a point inside two boxes counts twice), on `threads`
-/// threads (0: [`parallel::num_threads`]).
-pub fn hand_point_counts(
+/// The hand's boxes at each pose's opening, and the thread count to use; an error when
+/// the openings do not match the poses or one is out of the hand's range.
+fn prepare(
     hand: &HandGeometry,
     tcp2world: &[Pose],
     openings: &[f64],
-    index: &PointIndex,
     threads: usize,
-) -> Result<Vec<u32>> {
+) -> Result<(Vec<Vec<HandBox>>, usize)> {
     if openings.len() != tcp2world.len() {
         return Err(Error::Shape {
             name: "openings".into(),
@@ -207,6 +205,20 @@ pub fn hand_point_counts(
     } else {
         threads
     };
+    Ok((boxes, threads.max(1)))
+}
+
+/// For each pose `tcp2world[i]` with the fingers `openings[i]` apart, how many indexed
+/// points lie inside the hand (a point inside two boxes counts twice), on `threads`
+/// threads (0: [`parallel::num_threads`]).
+pub fn hand_point_counts(
+    hand: &HandGeometry,
+    tcp2world: &[Pose],
+    openings: &[f64],
+    index: &PointIndex,
+    threads: usize,
+) -> Result<Vec<u32>> {
+    let (boxes, threads) = prepare(hand, tcp2world, openings, threads)?;
     let parts = threads.min(tcp2world.len() / MIN_POSES_PER_THREAD).max(1);
     let counts = parallel::map_ranges(tcp2world.len(), parts, |range| {
         range
@@ -238,23 +250,7 @@ pub fn first_free(
     index: &PointIndex,
     threads: usize,
 ) -> Result<Option<usize>> {
-    if openings.len() != tcp2world.len() {
-        return Err(Error::Shape {
-            name: "openings".into(),
-            expected: format!("({},)", tcp2world.len()),
-            got: format!("({},)", openings.len()),
-        });
-    }
-    let boxes = openings
-        .iter()
-        .map(|&w| hand_boxes(hand, w))
-        .collect::<Result<Vec<_>>>()?;
-    let threads = if threads == 0 {
-        parallel::num_threads()
-    } else {
-        threads
-    }
-    .max(1);
+    let (boxes, threads) = prepare(hand, tcp2world, openings, threads)?;
     let free = |i: usize| {
         let pose = &tcp2world[i];
         let inverse = pose.inverse();

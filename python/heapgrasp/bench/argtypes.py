@@ -9,7 +9,14 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["OBJECT_DIR_HELP", "comma_choices", "float_in", "int_at_least", "object_dir"]
+__all__ = [
+    "OBJECT_DIR_HELP",
+    "add_ray_argument",
+    "comma_choices",
+    "float_in",
+    "int_at_least",
+    "object_dir",
+]
 
 
 def int_at_least(lo: int) -> Callable[[str], int]:
@@ -83,3 +90,16 @@ def object_dir(text: str) -> str:
     """``--object-dir``: the directory as an absolute path, so that a resumed run finds it
     from anywhere (what it holds is checked before any scene runs)."""
     return str(Path(text).expanduser().absolute())
+
+
+def add_ray_argument(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--ray [ADDRESS]``: run ``what`` (e.g. "shards") as Ray tasks."""
+    parser.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        help=f"run {what} as Ray tasks: alone, start a local cluster; with ADDRESS, join it "
+        "(needs pip install 'heapgrasp[ray]')",
+    )

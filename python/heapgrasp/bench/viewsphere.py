@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from heapgrasp.bench.argtypes import comma_choices, int_at_least
+from heapgrasp.bench.argtypes import add_ray_argument, comma_choices, int_at_least
 from heapgrasp.loop.records import write_json
 from heapgrasp.loop.viewsphere import ViewsphereConfig
 
@@ -533,34 +533,13 @@ def _execute_ray(
     finish: Callable[[PoseTask, dict[str, Any]], None],
     address: str,
 ) -> None:
-    import importlib
+    from heapgrasp.data.shards import ray_map
 
-    try:
-        ray: Any = importlib.import_module("ray")
-    except ImportError:
-        raise ImportError(
-            "--ray needs Ray, which is not installed: pip install 'heapgrasp[ray]'"
-        ) from None
-    env = {"env_vars": {"HEAPGRASP_NUM_THREADS": "1"}}
-    if address == "local":
-        ray.init(runtime_env=env)
-    else:
-        ray.init(address=address, runtime_env=env)
-    try:
-        remote = ray.remote(max_retries=2, num_cpus=1)(_safe_pose)
-        refs = {remote.remote(t): t for t in tasks}
-        remaining = list(refs)
-        while remaining:
-            ready, remaining = ray.wait(remaining, num_returns=1)
-            for ref in ready:
-                t = refs[ref]
-                try:
-                    result = ray.get(ref)
-                except Exception as exc:
-                    result = {"pose": t.pose, "yaw_deg": t.yaw_deg, "error": f"{exc}"}
-                finish(t, result)
-    finally:
-        ray.shutdown()
+    for k, result, error in ray_map(_safe_pose, [(t,) for t in tasks], address):
+        t = tasks[k]
+        if error is not None:
+            result = {"pose": t.pose, "yaw_deg": t.yaw_deg, "error": f"{error}"}
+        finish(t, result)
 
 
 def run_bench(args: argparse.Namespace) -> dict[str, Any]:
@@ -710,15 +689,7 @@ def add_parser(
         default=os.cpu_count() or 1,
         help="processes (object poses in parallel; default: every core)",
     )
-    p.add_argument(
-        "--ray",
-        nargs="?",
-        const="local",
-        default=None,
-        metavar="ADDRESS",
-        help="run poses as Ray tasks: alone, start a local cluster; with ADDRESS, join it "
-        "(needs pip install 'heapgrasp[ray]')",
-    )
+    add_ray_argument(p, "poses")
     p.add_argument(
         "--out",
         type=Path,

@@ -36,7 +36,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from heapgrasp.bench.argtypes import float_in, int_at_least
+from heapgrasp.bench.argtypes import add_ray_argument, float_in, int_at_least
 
 __all__ = ["add_parser"]
 
@@ -127,15 +127,7 @@ def _dataset_parser(
         default=os.cpu_count() or 1,
         help="processes of the local pool (default: every core)",
     )
-    p.add_argument(
-        "--ray",
-        nargs="?",
-        const="local",
-        default=None,
-        metavar="ADDRESS",
-        help="run shards as Ray tasks: alone, start a local cluster; with ADDRESS, join it "
-        "(needs pip install 'heapgrasp[ray]')",
-    )
+    add_ray_argument(p, "shards")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 

@@ -32,7 +32,7 @@ import platform
 import sys
 import time
 import zipfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
@@ -47,6 +47,7 @@ __all__ = [
     "ShardFailure",
     "ShardedConfig",
     "generate",
+    "ray_map",
     "read_manifest",
     "run_scenes",
     "save_shard",
@@ -378,30 +379,42 @@ class _Run:
 
     def ray(self, todo: list[int], address: str) -> None:
         """The shards as Ray tasks (``pip install 'heapgrasp[ray]'``)."""
-        try:
-            ray: Any = importlib.import_module("ray")  # optional; typed loosely either way
-        except ImportError:
-            raise ImportError(
-                "--ray needs Ray, which is not installed: pip install 'heapgrasp[ray]'"
-            ) from None
-        env = {"env_vars": {"HEAPGRASP_NUM_THREADS": "1"}}
-        if address == "local":
-            ray.init(runtime_env=env)
-        else:
-            ray.init(address=address, runtime_env=env)
-        try:
-            task = ray.remote(max_retries=2, num_cpus=1)(write_shard)
-            refs = {task.remote(self.config, s, self.out): s for s in todo}
-            remaining = list(refs)
-            while remaining:
-                ready, remaining = ray.wait(remaining, num_returns=1)
-                for ref in ready:
-                    shard = refs[ref]
-                    try:
-                        ray.get(ref)
-                    except Exception as exc:
-                        self.failures[shard] = f"{type(exc).__name__}: {exc}"
-                        continue
-                    self.done(shard)
-        finally:
-            ray.shutdown()
+        calls = [(self.config, s, self.out) for s in todo]
+        for k, _, error in ray_map(write_shard, calls, address):
+            if error is not None:
+                self.failures[todo[k]] = f"{type(error).__name__}: {error}"
+                continue
+            self.done(todo[k])
+
+
+def ray_map(
+    fn: Callable[..., Any], calls: Sequence[tuple[Any, ...]], address: str
+) -> Iterator[tuple[int, Any, Exception | None]]:
+    """``fn(*calls[k])`` for every ``k`` as Ray tasks (``pip install 'heapgrasp[ray]'``;
+    ``address`` ``"local"`` starts a local cluster, else joins that one), each on one
+    CPU with the core on one thread, retried twice (so ``fn`` must be idempotent).
+    Yields ``(k, result, None)`` or ``(k, None, error)`` as the tasks finish."""
+    try:
+        ray: Any = importlib.import_module("ray")  # optional; typed loosely either way
+    except ImportError:
+        raise ImportError(
+            "--ray needs Ray, which is not installed: pip install 'heapgrasp[ray]'"
+        ) from None
+    env = {"env_vars": {"HEAPGRASP_NUM_THREADS": "1"}}
+    if address == "local":
+        ray.init(runtime_env=env)
+    else:
+        ray.init(address=address, runtime_env=env)
+    try:
+        task = ray.remote(max_retries=2, num_cpus=1)(fn)
+        refs = {task.remote(*args): k for k, args in enumerate(calls)}
+        remaining = list(refs)
+        while remaining:
+            ready, remaining = ray.wait(remaining, num_returns=1)
+            for ref in ready:
+                try:
+                    yield refs[ref], ray.get(ref), None
+                except Exception as exc:
+                    yield refs[ref], None, exc
+    finally:
+        ray.shutdown()
