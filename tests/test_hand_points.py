@@ -77,3 +77,29 @@ def test_bad_input_raises_named_errors():
     with pytest.raises(HeapgraspError, match="hand"):
         hand_point_counts({"finger_width": 0.02}, pose, np.array([0.02]), pts)
     assert hand_point_counts(HAND, pose, np.array([0.02]), np.zeros((0, 3))).tolist() == [0]
+
+
+def test_an_inflated_hand_grows_outward_and_keeps_its_opening():
+    m = 0.003
+    big = PANDA_HAND.inflated(m)
+    assert big.max_opening == PANDA_HAND.max_opening
+    assert PANDA_HAND.inflated(0.0) == PANDA_HAND
+    g = PANDA_HAND
+    # Just outside the bare hand, TCP frame: in front of the palm's face, beside the
+    # palm, beyond a fingertip, outside a finger; and between the pads at 4 cm.
+    outside = np.array(
+        [
+            [0.0, 0.0, g.palm_front + m / 2],
+            [g.palm_front_half[0] + m / 2, 0.0, (g.palm_front + g.palm_split) / 2],
+            [0.0, 0.02 + g.tip_thickness / 2, g.finger_tip + m / 2],
+            [0.0, 0.02 + g.tip_thickness + m / 2, g.finger_tip - 0.005],
+        ]
+    )
+    between = np.array([[0.0, 0.02 - m / 2, g.finger_tip - 0.005]])
+    pose = np.eye(4)[None]
+    for p in outside:
+        assert hand_point_counts(HAND, pose, np.array([0.04]), p[None])[0] == 0
+        assert hand_point_counts(dataclasses.asdict(big), pose, np.array([0.04]), p[None])[0] == 1
+    assert hand_point_counts(dataclasses.asdict(big), pose, np.array([0.04]), between)[0] == 0
+    with pytest.raises(ValueError, match="margin"):
+        PANDA_HAND.inflated(-0.001)

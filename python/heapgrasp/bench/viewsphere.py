@@ -12,7 +12,7 @@ made. A pose without a grasp after them counts 6 steps. The policies:
   grasp (each distinct set of views synthesised once; at most ``bfs_max_sets`` sets,
   past which the pose counts as not found and is marked incomplete).
 
-With ``--execute`` (the default) the grasp an episode found is also executed by the
+Unless ``--no-execute``, the grasp an episode found is also executed by the
 free-flying Panda hand in PyBullet on the object (lift and shake): the physical success
 the paper did not measure.
 

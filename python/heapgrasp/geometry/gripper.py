@@ -8,6 +8,8 @@ The shipped networks and the analytic planner's defaults are for the Franka Pand
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 
 from heapgrasp.geometry.checks import finite, positive
@@ -94,6 +96,27 @@ class GripperGeometry:
                 "GripperGeometry.palm_back < palm_split < palm_front < finger_tip is "
                 f"required, got {self.palm_back}, {self.palm_split}, {self.palm_front}"
             )
+
+    def inflated(self, margin: float) -> GripperGeometry:
+        """The hand grown by ``margin`` (m) outward: the palm on every side, the fingers
+        on every side but their inner pads (so the opening is unchanged); for collision
+        checks against sampled points, which a thin overlap can pass between."""
+        m = float(margin)
+        if not (math.isfinite(m) and m >= 0.0):
+            raise ValueError(f"margin must be finite and >= 0, got {margin!r}")
+        fx, fy = self.palm_front_half
+        bx, by = self.palm_back_half
+        return dataclasses.replace(
+            self,
+            finger_width=self.finger_width + 2 * m,
+            finger_tip=self.finger_tip + m,
+            tip_thickness=self.tip_thickness + m,
+            base_thickness=self.base_thickness + m,
+            palm_front=self.palm_front + m,
+            palm_back=self.palm_back - m,
+            palm_front_half=(fx + m, fy + m),
+            palm_back_half=(bx + m, by + m),
+        )
 
     @property
     def finger_depth(self) -> float:

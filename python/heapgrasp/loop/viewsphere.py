@@ -15,7 +15,8 @@ renders them; a real camera would capture them):
    (:meth:`~heapgrasp.perception.clouds.UnexploredRegion.around`), less what any view of
    the set shows to be empty (each view's "seen" mask is computed once);
 4. grasp synthesis (:mod:`heapgrasp.planning.synthesis`): normals, candidate contacts,
-   antipodal pairs, their contact patches, the ranking and the first collision-free grasp.
+   antipodal pairs, their contact patches, the ranking and the first collision-free grasp
+   (the hand grown by half a voxel: see :attr:`ViewsphereConfig.hand_margin_voxels`).
 
 Every view's depth, points and mask, and every set's answer, are cached: a search over
 sets of views (:func:`~heapgrasp.planning.viewsphere_policies.breadth_first`) and several
@@ -102,6 +103,10 @@ class ViewsphereConfig:
     """No contact this close to the object's lowest point."""
     min_quality_deg: float = 150.0
     """A pair's least quality ``180° − (A + B)``."""
+    hand_margin_voxels: float = 0.5
+    """The collision check grows the hand outward by this many voxels: the points sample
+    surfaces a voxel apart, and a hand overlapping a surface by less passes between
+    them (the opening is unchanged). The paper's check has no margin (0)."""
     bfs_max_sets: int = 600
     """Breadth-first search's budget: distinct sets of views synthesised per episode
     (about three levels of the search); past it the pose counts as not found."""
@@ -119,6 +124,10 @@ class ViewsphereConfig:
             if not math.isfinite(value):
                 raise ValueError(f"ViewsphereConfig.{f.name} must be finite, got {value}")
         positive = ("radius", "step_deg", "max_polar_deg", "voxel", "table_threshold")
+        if self.hand_margin_voxels < 0:
+            raise ValueError(
+                f"ViewsphereConfig.hand_margin_voxels must be >= 0, got {self.hand_margin_voxels}"
+            )
         for name in (*positive, "object_half_xy", "curvature_factor", "max_range"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"ViewsphereConfig.{name} must be > 0, got {getattr(self, name)}")
@@ -362,7 +371,8 @@ class ViewsphereGrasps:
             return None
         centre = np.vstack([obj, region[_inside(region, obj)]]).mean(axis=0)
         order = rank_grasps(obj, pairs, centre)
-        found = first_free_grasp(obj, region, pairs, order, gripper=self.gripper)
+        hand = self.gripper.inflated(c.hand_margin_voxels * c.voxel)
+        found = first_free_grasp(obj, region, pairs, order, gripper=hand)
         if found is None:
             return None
         k, pose = found
