@@ -32,6 +32,9 @@ fn rows<'py>(py: Python<'py>, v: Vec<[f64; 3]>) -> PyResult<Bound<'py, PyArray2<
     PyArray1::from_vec(py, v.concat()).reshape([n, 3])
 }
 
+/// Normals (N, 3) and curvatures (N,).
+type NormalArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
+
 /// Unit normals (away from the cloud's centroid) and curvatures from each point's `k`
 /// nearest points.
 ///
@@ -44,7 +47,7 @@ pub fn point_normals<'py>(
     points: &Bound<'py, PyAny>,
     k: Option<&Bound<'py, PyAny>>,
     threads: Option<&Bound<'py, PyAny>>,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<NormalArrays<'py>> {
     let pts = cloud(points, "points")?;
     let k = match k {
         None => 10,
