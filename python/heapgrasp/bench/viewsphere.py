@@ -38,7 +38,7 @@ import json
 import os
 import sys
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from heapgrasp.bench.argtypes import add_ray_argument, comma_choices, int_at_least
+from heapgrasp.loop.config import parse_sets
 from heapgrasp.loop.records import write_json
 from heapgrasp.loop.viewsphere import ViewsphereConfig
 
@@ -422,19 +423,6 @@ def _settings(args: argparse.Namespace, config: ViewsphereConfig) -> dict[str, A
     }
 
 
-def _parse_sets(items: Iterable[str]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise ValueError(f"--set expects KEY=VALUE, got {item!r}")
-        try:
-            out[key.strip()] = json.loads(value)
-        except json.JSONDecodeError:
-            raise ValueError(f"--set {key}: not a number: {value!r}") from None
-    return out
-
-
 def _tasks(
     objects: Sequence[Any], args: argparse.Namespace, config: ViewsphereConfig, out: Path
 ) -> tuple[list[PoseTask], dict[str, dict[int, dict[str, Any]]]]:
@@ -546,7 +534,7 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
     """Runs (or continues) the benchmark in ``args.out``; returns ``results.json``."""
     from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
-    config = ViewsphereConfig.from_dict({**ViewsphereConfig().to_dict(), **_parse_sets(args.set)})
+    config = ViewsphereConfig.from_dict({**ViewsphereConfig().to_dict(), **parse_sets(args.set)})
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     (out / "records").mkdir(exist_ok=True)
