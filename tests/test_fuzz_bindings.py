@@ -1863,6 +1863,67 @@ def test_seen_empty(data):
     np.testing.assert_array_equal(out, again)
 
 
+# ------------------------------------------------- grasp_region and surfel_visibility
+@FUZZ
+@given(data=st.data())
+def test_grasp_region_and_surfel_visibility(data):
+    EXAMPLES_RUN["test_grasp_region_and_surfel_visibility"] += 1
+    names = ["points", "normals", "targets", "half_length", "radius", "threads"]
+    plan = Plan(data, names)
+    n = data.draw(st.integers(0, 20))
+    m = data.draw(st.integers(0, 20))
+    points, same, pts = cloud_arg(data, n, "points" in plan)
+    targets, targets_same, tgt = cloud_arg(data, m, "targets" in plan)
+    nrm = unit_rows(data, n)
+    normals: Any = nrm
+    normals_same = True
+    if "normals" in plan:
+        normals, normals_same = data.draw(
+            st.one_of(
+                maybe_array(nrm),
+                st.tuples(st.just(nrm * 3.0), st.just(True)),  # normalised in the core
+                st.tuples(st.just(np.zeros((n, 3))), st.just(not n)),
+                st.tuples(st.just(np.zeros((n + 1, 3))), st.just(False)),
+            )
+        )
+    kw = {
+        "half_length": (
+            data.draw(float_arg(st.floats(-0.1, 0.2))) if "half_length" in plan else 0.08
+        ),
+        "radius": data.draw(float_arg(st.floats(-0.01, 0.05))) if "radius" in plan else 0.015,
+        "threads": data.draw(int_arg(0, 4096)) if "threads" in plan else None,
+    }
+    out = call("grasp_region", names, _core.grasp_region, points, normals, targets, **kw)
+    if ok(out):
+        assert same and normals_same and targets_same
+        assert out.dtype == np.bool_ and out.shape == (m,)
+        kw["threads"] = 1
+        np.testing.assert_array_equal(out, _core.grasp_region(pts, nrm, tgt, **kw))
+    else:
+        assert plan.bad, "a valid call was refused"
+    names = ["points", "normals", "eyes", "targets", "radius", "threads"]
+    plan = Plan(data, names)
+    v = data.draw(st.integers(0, 4))
+    points, same, pts = cloud_arg(data, n, "points" in plan)
+    eyes, eyes_same, eye = cloud_arg(data, v, "eyes" in plan)
+    targets, targets_same, tgt = cloud_arg(data, m, "targets" in plan)
+    normals, normals_same = data.draw(maybe_array(nrm, "normals" in plan))
+    kw = {
+        "radius": data.draw(float_arg(st.floats(-0.01, 0.05))) if "radius" in plan else 0.01,
+        "threads": data.draw(int_arg(0, 4096)) if "threads" in plan else None,
+    }
+    out = call(
+        "surfel_visibility", names, _core.surfel_visibility, points, normals, eyes, targets, **kw
+    )
+    if not ok(out):
+        assert plan.bad, "a valid call was refused"
+        return
+    assert same and normals_same and eyes_same and targets_same
+    assert out.dtype == np.bool_ and out.shape == (v, m)
+    kw["threads"] = 1
+    np.testing.assert_array_equal(out, _core.surfel_visibility(pts, nrm, eye, tgt, **kw))
+
+
 def test_every_entry_point_is_fuzzed():
     """The tests above cover every public name of the native module."""
     covered = {
@@ -1886,6 +1947,8 @@ def test_every_entry_point_is_fuzzed():
         "hand_point_counts",
         "first_free_pose",
         "seen_empty",
+        "grasp_region",
+        "surfel_visibility",
         "point_normals",
         "contact_patches",
         "antipodal_pairs",

@@ -19,6 +19,7 @@ mod roofs;
 mod score;
 mod synthesis;
 mod tsdf;
+mod visibility;
 
 use pyo3::prelude::*;
 
@@ -54,6 +55,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(synthesis::point_normals, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::contact_patches, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::antipodal_pairs, m)?)?;
+    m.add_function(wrap_pyfunction!(visibility::grasp_region, m)?)?;
+    m.add_function(wrap_pyfunction!(visibility::surfel_visibility, m)?)?;
     m.add_function(wrap_pyfunction!(roofs::keep_silhouettes, m)?)?;
     m.add_function(wrap_pyfunction!(filter::gaussian_filter3d, m)?)?;
     m.add_function(wrap_pyfunction!(filter::maximum_filter3d, m)?)?;

@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use crate::convert::{array_arg, bool_arg, check_tail, detached, float_arg, int_arg};
 use crate::errors::IntoPyResult;
 
-fn cloud(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Point>> {
+pub(crate) fn cloud(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Point>> {
     let arr = array_arg::<f64>(obj, name, "float64", Some(2))?;
     check_tail(name, &arr.shape, &[3], "(N, 3)")?;
     synthesis::points_from_flat(name, arr.as_slice()).py()
@@ -20,7 +20,7 @@ fn mask(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec<bool>> {
     Ok(arr.as_slice().to_vec())
 }
 
-fn threads_arg(threads: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
+pub(crate) fn threads_arg(threads: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
     Ok(match threads {
         None => 0,
         Some(t) => int_arg(t, "threads", 0, 4096, "expected an int in [0, 4096]")? as usize,

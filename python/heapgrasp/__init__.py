@@ -36,6 +36,7 @@ from heapgrasp._core import (
     contact_patches,
     first_free_pose,
     gaussian_filter3d,
+    grasp_region,
     hand_point_counts,
     kernel_level,
     maximum_filter3d,
@@ -44,6 +45,7 @@ from heapgrasp._core import (
     point_normals,
     score_views,
     seen_empty,
+    surfel_visibility,
 )
 
 __all__ = [
@@ -64,6 +66,7 @@ __all__ = [
     "contact_patches",
     "first_free_pose",
     "gaussian_filter3d",
+    "grasp_region",
     "hand_point_counts",
     "kernel_level",
     "maximum_filter3d",
@@ -72,4 +75,5 @@ __all__ = [
     "point_normals",
     "score_views",
     "seen_empty",
+    "surfel_visibility",
 ]

@@ -41,6 +41,7 @@ __all__ = [
     "contact_patches",
     "first_free_pose",
     "gaussian_filter3d",
+    "grasp_region",
     "hand_point_counts",
     "keep_silhouettes",
     "kernel_level",
@@ -50,6 +51,7 @@ __all__ = [
     "point_normals",
     "score_views",
     "seen_empty",
+    "surfel_visibility",
 ]
 
 __version__: str
@@ -386,6 +388,41 @@ def antipodal_pairs(
     [0, 180]); ``A``, ``B`` the angles between the contact line and each normal.
 
     Returns (first, second, quality, width), ordered by (i, j).
+    """
+
+def grasp_region(
+    points: _F64,
+    normals: _F64,
+    targets: _F64,
+    *,
+    half_length: float,
+    radius: float,
+    threads: int | None = None,
+) -> npt.NDArray[np.bool_]:
+    """Whether each target lies within ``half_length`` along and ``radius`` across the
+    normal line of some object point (seed 001's 3D heuristic: the unexplored points
+    that could hold a grasp).
+
+    ``points``, ``normals`` (N, 3) float64 (non-zero normals, normalised here);
+    ``targets`` (M, 3) float64; ``half_length``, ``radius`` > 0 (m). Returns (M,) bool.
+    """
+
+def surfel_visibility(
+    points: _F64,
+    normals: _F64,
+    eyes: _F64,
+    targets: _F64,
+    *,
+    radius: float,
+    threads: int | None = None,
+) -> npt.NDArray[np.bool_]:
+    """Whether each target is visible from each eye past a surfel reconstruction of the
+    object points: squares of half width ``radius`` across their normals, ray cast with
+    parry3d's BVH (the unseen parts of the object occlude nothing).
+
+    ``points``, ``normals`` (N, 3) float64; ``eyes`` (V, 3), ``targets`` (M, 3) float64;
+    ``radius`` > 0 (m). Returns (V, M) bool. The field of view and the sensor's range
+    are the caller's.
     """
 
 def first_free_pose(

@@ -44,6 +44,7 @@ mod rounding;
 pub mod score;
 pub mod synthesis;
 pub mod tsdf;
+pub mod visibility;
 
 pub use camera::{poses_from_flat, PinholeCamera, Pose};
 pub use error::{Error, Result};

@@ -72,7 +72,7 @@ pub struct CloudIndex {
 
 impl CloudIndex {
     /// Indexes the points `points[i]` for `i` in `members` in cells of `cell` metres.
-    fn new(points: &[Point], members: impl Iterator<Item = usize>, cell: f64) -> Self {
+    pub(crate) fn new(points: &[Point], members: impl Iterator<Item = usize>, cell: f64) -> Self {
         let mut cells: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
         let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
         let mut len = 0;
@@ -100,7 +100,7 @@ impl CloudIndex {
 
     /// Calls `f` with every indexed point in the cells that meet the cube of half width
     /// `radius` around `p` (a superset of the ball).
-    fn near(&self, p: &Point, radius: f64, mut f: impl FnMut(u32)) {
+    pub(crate) fn near(&self, p: &Point, radius: f64, mut f: impl FnMut(u32)) {
         let a = Self::key(self.cell, &p.map(|v| v - radius));
         let b = Self::key(self.cell, &p.map(|v| v + radius));
         let (a, b) = (
