@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from heapgrasp.bench.viewsphere import classify, summarize
+from heapgrasp.bench.viewsphere import POLICIES, classify, summarize
 from heapgrasp.cli import main
 
 
@@ -31,13 +31,28 @@ def test_a_small_run_writes_results_a_table_and_resumes(tmp_path: Path) -> None:
     args = ["--objects", "005_tomato_soup_can", "--poses", "2", "--no-execute"]
     assert _run(out, *args) == 0
     results = json.loads((out / "results.json").read_text())
-    assert set(results["policies"]) == {"random", "brick", "bfs"}
+    assert set(results["policies"]) == set(POLICIES)  # all by default
     can = results["policies"]["bfs"]["objects"]["005_tomato_soup_can"]
     assert len(can["success_at_step"]) == 7 and len(can["poses"]) == 2
     assert all(np.diff(can["success_at_step"]) >= 0)
-    for name in ("random", "brick"):  # BFS takes the fewest steps
+    for name in ("random", "brick", "heuristic-2d", "heuristic-3d"):  # BFS: the fewest steps
         other = results["policies"][name]["objects"]["005_tomato_soup_can"]
         assert can["mean_steps"] <= other["mean_steps"]
+        for p in other["poses"]:  # one decision per move, timed; one step of arc per move
+            assert len(p["decisions_s"]) == p["steps"]
+            assert p["travelled_steps"] == pytest.approx(p["steps"])
+    gain = results["policies"]["information-gain"]["objects"]["005_tomato_soup_can"]
+    for p in gain["poses"]:  # viewpoints anywhere: at least a step of arc each
+        assert p["path"] == [] and len(p["decisions_s"]) == p["steps"]
+        assert p["travelled_steps"] >= p["steps"] - 1e-9
+    row = results["table1"]["objects"]["005_tomato_soup_can"]
+    assert row["viewpoints"] == gain["mean_steps"]
+    assert row["effective_steps"] == gain["mean_travelled_steps"]
+    paper = {"step_reduction_pct": 41.0, "time_reduction_pct": 73.0}
+    assert results["table1"]["paper_mean"] == paper
+    assert set(results["bfs_ratios"]) == set(POLICIES) - {"bfs"}
+    table = (out / "table.md").read_text()
+    assert "(Fig. 11)" in table and "(Table 1)" in table and "## Decision time" in table
     pose = can["poses"][0]
     assert {"path", "steps", "grasp", "quality_deg", "executed", "views_deg"} <= set(pose)
     assert pose["executed"] is None  # --no-execute
@@ -123,6 +138,7 @@ def test_bad_objects_are_reported_and_the_others_run(
         (["--poses", "0"], "must be >= 1"),
         (["--objects", "teapot"], "unknown object(s) 'teapot'"),
         (["--policies", "greedy"], "unknown policy(s) 'greedy'"),
+        (["--policies", "all,brick"], "unknown policy(s) 'all'"),
         (["--set", "voxels=0.01"], "unknown viewsphere setting(s) voxels"),
         (["--set", "voxel=-1"], "ViewsphereConfig.voxel must be > 0"),
     ],

@@ -8,6 +8,10 @@ made. A pose without a grasp after them counts 6 steps. The policies:
 
 * ``random``: a uniformly random direction each move (seeded per pose);
 * ``brick``: always north-east;
+* ``heuristic-2d``, ``heuristic-3d``: seed 001's Algorithms 1 and 2
+  (:mod:`heapgrasp.planning.viewsphere_heuristics`);
+* ``information-gain``: the comparison of §4.2.3, which flies between 34 fixed
+  viewpoints; its steps are viewpoints, and ``travelled_steps`` its path in 20° steps;
 * ``bfs``: breadth-first search, the fewest moves that reach a set of views yielding a
   grasp (each distinct set of views synthesised once; at most ``bfs_max_sets`` sets,
   past which the pose counts as not found and is marked incomplete).
@@ -23,7 +27,10 @@ Writes in ``--out``:
   the settings, each object's class and the errors;
 * ``records/OBJECT.jsonl``: one line per finished pose (what a rerun resumes from);
 * ``table.md``: success at each step per object and policy, mean steps, the class;
+  each policy's success over BFS's per class at steps 1 and 3 (Fig. 11), decision
+  times, and information gain vs the 3D heuristic (Table 1);
 * ``fig10_success.png``: success vs step per object, all policies (the paper's Fig. 10);
+* ``fig11_bfs_ratio.png``: policy / BFS success per class at steps 1 and 3 (Fig. 11);
 * ``difficulty.png``: random's share of BFS's success at step 2 per object, with the
   class thresholds (≤ 0.40 hard, ≤ 0.80 medium, else easy).
 
@@ -65,8 +72,8 @@ __all__ = [
     "summarize",
 ]
 
-#: The baseline policies, in the order they are reported.
-POLICIES = ("random", "brick", "bfs")
+#: The policies, in the order they are reported.
+POLICIES = ("random", "brick", "heuristic-2d", "heuristic-3d", "information-gain", "bfs")
 #: Random's share of BFS's success at step 2: at most the first is hard, at most the
 #: second medium, else easy (seed 001 §5.1).
 CLASS_THRESHOLDS = (0.40, 0.80)
@@ -91,10 +98,55 @@ class PoseTask:
     execute: bool
 
 
-def _policy(name: str) -> Any:
+def _policy(name: str, world: Any, config: ViewsphereConfig) -> Any:
+    """The policy ``name`` for episodes in ``world``."""
+    from heapgrasp.planning import viewsphere_heuristics as vh
     from heapgrasp.planning.viewsphere_policies import BrickPolicy, RandomPolicy
 
-    return {"random": RandomPolicy, "brick": BrickPolicy}[name]()
+    if name in ("random", "brick"):
+        return {"random": RandomPolicy, "brick": BrickPolicy}[name]()
+    scorer = vh.ViewScorer(
+        world.sphere,
+        world.camera,
+        min_range=config.min_range,
+        max_range=config.max_range,
+        voxel=config.voxel,
+        neighbours=config.neighbours,
+        half_xy=config.object_half_xy,
+        max_height=config.object_max_height,
+    )
+    if name == "heuristic-2d":
+        return vh.Heuristic2D(scorer)
+    if name == "heuristic-3d":
+        return vh.Heuristic3D(scorer, half_length=world.grasps.gripper.max_opening)
+    if name == "information-gain":
+        return vh.InformationGain(scorer)
+    raise ValueError(f"unknown policy {name!r}")
+
+
+class _Timed:
+    """A policy whose decisions are timed (seconds per call, in ``times``)."""
+
+    def __init__(self, policy: Any) -> None:
+        self.policy = policy
+        self.name = policy.name
+        self.times: list[float] = []
+
+    def reset(self, seed: int) -> None:
+        self.times = []
+        self.policy.reset(seed)
+
+    def choose(self, state: Any) -> int:
+        t = time.perf_counter()
+        out: int = self.policy.choose(state)
+        self.times.append(time.perf_counter() - t)
+        return out
+
+    def choose_view(self, state: Any) -> Any:
+        t = time.perf_counter()
+        out = self.policy.choose_view(state)
+        self.times.append(time.perf_counter() - t)
+        return out
 
 
 def run_pose(task: PoseTask) -> dict[str, Any]:
@@ -102,7 +154,11 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
     import math
 
     from heapgrasp.geometry.viewsphere import DIRECTIONS
-    from heapgrasp.planning.viewsphere_policies import breadth_first, run_episode
+    from heapgrasp.planning.viewsphere_policies import (
+        breadth_first,
+        run_episode,
+        run_viewpoint_episode,
+    )
     from heapgrasp.sim.optics import Category
     from heapgrasp.sim.viewsphere_world import ViewsphereWorld
 
@@ -123,6 +179,7 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
     for name in task.policies:
         t = time.perf_counter()
         sets_before = world.grasps.sets_evaluated
+        decisions: list[float] = []
         if name == "bfs":
             episode = breadth_first(
                 world.grasp_found,
@@ -132,8 +189,10 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
                 max_sets=config.bfs_max_sets,
             )
         else:
-            episode = run_episode(
-                _policy(name),
+            policy = _Timed(_policy(name, world, config))
+            run = run_viewpoint_episode if name == "information-gain" else run_episode
+            episode = run(
+                policy,
                 world.grasp_found,
                 sphere=world.sphere,
                 start=world.start,
@@ -141,6 +200,7 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
                 seed=task.seed * 1000 + task.pose,
                 observe=world.grasps.fused,
             )
+            decisions = policy.times
         grasp = world.grasp(list(episode.poses)) if episode.found else None
         seconds = time.perf_counter() - t
         entry: dict[str, Any] = {
@@ -150,12 +210,14 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
                 for p in episode.poses
             ],
             "steps": episode.steps,
+            "travelled_steps": round(episode.travelled / world.sphere.step, 4),
             "found": episode.found,
             "complete": episode.complete,
             "grasp": None if grasp is None else grasp.to_dict(),
             "quality_deg": None if grasp is None else round(grasp.quality, 4),
             "executed": None,
             "seconds": round(seconds, 4),
+            "decisions_s": [round(t, 5) for t in decisions],
             "sets_synthesised": world.grasps.sets_evaluated - sets_before,
         }
         if executor is not None and grasp is not None:
@@ -197,10 +259,16 @@ def _policy_summary(records: Sequence[Mapping[str, Any]], name: str, steps: int)
     taken = np.array([e["steps"] if e["found"] else steps for e in entries], dtype=np.float64)
     success = [float(np.mean(found & (taken <= s))) if n else 0.0 for s in range(steps + 1)]
     executed = [e["executed"] for e in entries if e.get("executed") is not None]
+    decisions = [t for e in entries for t in e.get("decisions_s", [])]
     return {
         "poses_run": n,
         "success_at_step": success,
         "mean_steps": float(taken.mean()) if n else None,
+        "mean_travelled_steps": (
+            float(np.mean([e.get("travelled_steps", 0.0) for e in entries])) if n else None
+        ),
+        "mean_decision_s": float(np.mean(decisions)) if decisions else None,
+        "max_decision_s": float(np.max(decisions)) if decisions else None,
         "found": int(found.sum()),
         "incomplete": sum(not e.get("complete", True) for e in entries),
         "executed": len(executed),
@@ -264,9 +332,91 @@ def summarize(
         "settings": dict(settings),
         "policies": policies,
         "classes": classes,
+        "bfs_ratios": bfs_ratios(policies, classes),
+        "table1": table1(policies),
         "errors": dict(errors),
         "seconds": sum(r.get("seconds", 0.0) for recs in records.values() for r in recs),
     }
+
+
+def bfs_ratios(
+    policies: Mapping[str, Any], classes: Mapping[str, Any], steps: Sequence[int] = (1, 3)
+) -> dict[str, dict[str, dict[str, float | None]]]:
+    """Fig. 11's numbers: per policy, class (easy, medium, hard, all) and step, the mean
+    over the class's objects of the policy's success over BFS's (objects where BFS
+    found nothing by that step are left out)."""
+    if "bfs" not in policies:
+        return {}
+    bfs = policies["bfs"]["objects"]
+    out: dict[str, dict[str, dict[str, float | None]]] = {}
+    for name, pol in policies.items():
+        if name == "bfs":
+            continue
+        out[name] = {}
+        for cls in ("easy", "medium", "hard", "all"):
+            objs = [
+                o
+                for o, c in classes.items()
+                if (cls == "all" or c["class"] == cls) and o in pol["objects"] and o in bfs
+            ]
+            row: dict[str, float | None] = {}
+            for step in steps:
+                r = [
+                    pol["objects"][o]["success_at_step"][step] / bfs[o]["success_at_step"][step]
+                    for o in objs
+                    if step < len(bfs[o]["success_at_step"]) and bfs[o]["success_at_step"][step] > 0
+                ]
+                row[f"step_{step}"] = float(np.mean(r)) if r else None
+            out[name][cls] = row
+    return out
+
+
+#: Seed 001's Table 1 average reductions of the 3D heuristic over information gain (%):
+#: effective steps, time.
+PAPER_TABLE1_REDUCTIONS = (41.0, 73.0)
+
+
+def table1(policies: Mapping[str, Any]) -> dict[str, Any]:
+    """Table 1's numbers per object: information gain's viewpoints and effective steps,
+    the 3D heuristic's steps, and the reduction (%); each one's decision time per
+    episode and episode time (s), and the reduction of the latter."""
+    if not {"information-gain", "heuristic-3d"} <= set(policies):
+        return {}
+    gain = policies["information-gain"]["objects"]
+    h3d = policies["heuristic-3d"]["objects"]
+    rows: dict[str, Any] = {}
+    for obj in gain:
+        if obj not in h3d:
+            continue
+        g, h = gain[obj], h3d[obj]
+        eff, steps = g["mean_travelled_steps"], h["mean_steps"]
+
+        def per_episode(o: Mapping[str, Any]) -> float:
+            return float(np.mean([sum(p.get("decisions_s", [])) for p in o["poses"]]))
+
+        rows[obj] = {
+            "viewpoints": g["mean_steps"],
+            "effective_steps": eff,
+            "heuristic_3d_steps": steps,
+            "step_reduction_pct": 100.0 * (eff - steps) / eff if eff else None,
+            "gain_seconds": g["mean_seconds"],
+            "heuristic_3d_seconds": h["mean_seconds"],
+            "time_reduction_pct": (
+                100.0 * (g["mean_seconds"] - h["mean_seconds"]) / g["mean_seconds"]
+                if g["mean_seconds"]
+                else None
+            ),
+            "gain_decision_seconds": per_episode(g),
+            "heuristic_3d_decision_seconds": per_episode(h),
+        }
+    mean = {
+        key: float(np.mean([r[key] for r in rows.values() if r[key] is not None]))
+        for key in ("step_reduction_pct", "time_reduction_pct")
+        if any(r[key] is not None for r in rows.values())
+    }
+    keys = ("step_reduction_pct", "time_reduction_pct")
+    paper = dict(zip(keys, PAPER_TABLE1_REDUCTIONS, strict=True))
+    return {"objects": rows, "mean": mean, "paper_mean": paper}
 
 
 def markdown_table(results: Mapping[str, Any]) -> str:
@@ -316,10 +466,67 @@ def markdown_table(results: Mapping[str, Any]) -> str:
                 + f" | {ms:.2f} | | |"
             )
     lines += means
+    ratios = results.get("bfs_ratios") or {}
+    if ratios:
+        lines += [
+            "",
+            "## Policy / BFS success (Fig. 11)",
+            "",
+            "| policy | easy 1 | easy 3 | medium 1 | medium 3 | hard 1 | hard 3 | all 1 | all 3 |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for name, by_class in ratios.items():
+            cells = [
+                "–" if (v := by_class[c][f"step_{s}"]) is None else f"{v:.2f}"
+                for c in ("easy", "medium", "hard", "all")
+                for s in (1, 3)
+            ]
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    decisions = [
+        (name, pol["objects"])
+        for name, pol in results["policies"].items()
+        if any(o.get("mean_decision_s") is not None for o in pol["objects"].values())
+    ]
+    if decisions:
+        lines += ["", "## Decision time", "", "| policy | mean ms | max ms |", "|---|---|---|"]
+        for name, objs in decisions:
+            timed = [o for o in objs.values() if o["mean_decision_s"] is not None]
+            mean_s = [float(o["mean_decision_s"]) for o in timed]
+            max_s = [float(o["max_decision_s"]) for o in timed]
+            lines.append(
+                f"| {name} | {1000 * float(np.mean(mean_s)):.0f} | {1000 * max(max_s):.0f} |"
+            )
+    t1 = results.get("table1") or {}
+    if t1.get("objects"):
+        lines += [
+            "",
+            "## Information gain vs the 3D heuristic (Table 1)",
+            "",
+            "| object | viewpoints | effective steps | 3D steps | reduction % | "
+            "gain s / episode | 3D s / episode | reduction % |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for obj, r in t1["objects"].items():
+            lines.append(
+                f"| {obj} | {r['viewpoints']:.2f} | {r['effective_steps']:.2f} | "
+                f"{r['heuristic_3d_steps']:.2f} | {_pct(r['step_reduction_pct'])} | "
+                f"{r['gain_seconds']:.2f} | {r['heuristic_3d_seconds']:.2f} | "
+                f"{_pct(r['time_reduction_pct'])} |"
+            )
+        m, paper = t1["mean"], t1["paper_mean"]
+        lines.append(
+            f"| mean (paper) | | | | {_pct(m.get('step_reduction_pct'))} "
+            f"({_pct(paper.get('step_reduction_pct'))}) | | | "
+            f"{_pct(m.get('time_reduction_pct'))} ({_pct(paper.get('time_reduction_pct'))}) |"
+        )
     if results["errors"]:
         lines += ["", "## Errors", ""]
         lines += [f"- {obj}: {msg}" for obj, msg in results["errors"].items()]
     return "\n".join(lines) + "\n"
+
+
+def _pct(v: float | None) -> str:
+    return "–" if v is None else f"{v:.0f}"
 
 
 def figures(results: Mapping[str, Any], out: Path) -> None:
@@ -352,6 +559,29 @@ def figures(results: Mapping[str, Any], out: Path) -> None:
     fig.tight_layout()
     fig.savefig(out / "fig10_success.png", dpi=110)
     plt.close(fig)
+    by_class = results.get("bfs_ratios") or {}
+    if by_class:
+        classes = ("easy", "medium", "hard")
+        fig, axes = plt.subplots(1, 2, figsize=(9, 3.2), sharey=True)
+        width = 0.8 / len(by_class)
+        for ax, step in zip(axes, (1, 3), strict=True):
+            for k, (name, rows) in enumerate(by_class.items()):
+                values = [rows[c][f"step_{step}"] for c in classes]
+                ax.bar(
+                    [i + k * width for i in range(len(classes))],
+                    [np.nan if v is None else v for v in values],
+                    width,
+                    label=name,
+                )
+            ax.set_xticks([i + 0.4 - width / 2 for i in range(len(classes))], classes)
+            ax.set_title(f"step {step}", fontsize=9)
+            ax.axhline(1.0, color="k", lw=0.8)
+            ax.grid(axis="y", alpha=0.3)
+        axes[0].set_ylabel("policy / BFS success")
+        axes[1].legend(fontsize=7)
+        fig.tight_layout()
+        fig.savefig(out / "fig11_bfs_ratio.png", dpi=110)
+        plt.close(fig)
     ratios = [(o, c["ratio"]) for o, c in results["classes"].items() if c["ratio"] is not None]
     if ratios:
         fig, ax = plt.subplots(figsize=(max(4.0, 0.5 * len(ratios) + 1), 3.2))
@@ -614,11 +844,12 @@ def add_parser(
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    some = comma_choices("policy", POLICIES)
     p.add_argument(
         "--policies",
-        type=comma_choices("policy", POLICIES),
+        type=lambda text: POLICIES if text.strip().lower() == "all" else some(text),
         default=POLICIES,
-        help=f"comma-separated policies among {', '.join(POLICIES)} (default: all)",
+        help=f"comma-separated policies among {', '.join(POLICIES)}, or all (the default)",
     )
     p.add_argument(
         "--objects",

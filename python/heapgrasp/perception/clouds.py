@@ -38,6 +38,7 @@ __all__ = [
     "UnexploredRegion",
     "backproject",
     "fit_table",
+    "project",
     "voxel_downsample",
 ]
 
@@ -88,6 +89,34 @@ def backproject(
     cam = np.column_stack([(u - camera.cx) / camera.fx * z, (v - camera.cy) / camera.fy * z, z])
     out: F64 = cam @ pose[:3, :3].T + pose[:3, 3]
     return out
+
+
+def project(
+    points: npt.ArrayLike,
+    camera: CameraSpec,
+    cam2world: npt.ArrayLike,
+    *,
+    min_range: float = MIN_RANGE,
+    max_range: float = MAX_RANGE,
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.bool_]]:
+    """Where a camera sees world points: their pixels ``(u, v)`` (the core's convention,
+    ``u = ⌊fx·x/z + cx + 0.5⌋``) and whether each is in view (in the image, its depth
+    along the optical axis in ``[min_range, max_range]``). :func:`backproject`'s inverse;
+    the pixels of points out of view are meaningless."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if not np.isfinite(pts).all():
+        raise ValueError("points hold NaN or infinity")
+    pose = _pose("cam2world", cam2world)
+    cam = (pts - pose[:3, 3]) @ pose[:3, :3]
+    z = cam[:, 2]
+    in_range = (z >= min_range) & (z <= max_range) & (z > 0.0)
+    safe = np.where(in_range, z, 1.0)
+    u = np.floor(camera.fx * cam[:, 0] / safe + camera.cx + 0.5)
+    v = np.floor(camera.fy * cam[:, 1] / safe + camera.cy + 0.5)
+    inside = in_range & (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
+    u = np.where(inside, u, 0).astype(np.int64)
+    v = np.where(inside, v, 0).astype(np.int64)
+    return u, v, inside
 
 
 def voxel_downsample(points: npt.ArrayLike, voxel: float) -> F64:

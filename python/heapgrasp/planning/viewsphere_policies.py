@@ -40,10 +40,12 @@ __all__ = [
     "Fused",
     "RandomPolicy",
     "ViewState",
+    "ViewpointPolicy",
     "ViewspherePolicy",
     "breadth_first",
     "pose_key",
     "run_episode",
+    "run_viewpoint_episode",
 ]
 
 #: Decimal places of a pose's angles in :func:`pose_key` (radians).
@@ -96,6 +98,20 @@ class ViewspherePolicy(Protocol):
         """The direction to move in next."""
 
 
+@runtime_checkable
+class ViewpointPolicy(Protocol):
+    """Picks the next viewpoint itself, anywhere on the sphere (the information gain
+    comparison), rather than a direction to step in."""
+
+    name: str
+
+    def reset(self, seed: int) -> None:
+        """Starts a new episode."""
+
+    def choose_view(self, state: ViewState) -> SpherePose:
+        """The viewpoint to fly to next (not one visited)."""
+
+
 @dataclass
 class RandomPolicy:
     """A uniformly random direction at each step."""
@@ -134,6 +150,9 @@ class Episode:
     found: bool
     complete: bool = True
     """False when a search stopped at its budget before an answer (not found)."""
+    travelled: float = 0.0
+    """The camera's path along the sphere, as the angle seen from the centre (radians;
+    one step is the sphere's ``step``)."""
 
 
 def run_episode(
@@ -157,15 +176,51 @@ def run_episode(
     policy.reset(seed)
     poses = [start]
     directions: list[int] = []
+    travelled = 0.0
     while True:
         if grasp_found(frozenset(pose_key(p) for p in poses)):
-            return Episode(tuple(poses), tuple(directions), len(directions), True)
+            return Episode(tuple(poses), tuple(directions), len(directions), True, True, travelled)
         if len(directions) == max_steps:
-            return Episode(tuple(poses), tuple(directions), max_steps, False)
+            return Episode(tuple(poses), tuple(directions), max_steps, False, True, travelled)
         state = ViewState(poses[-1], tuple(poses), len(directions), observe)
         wanted = policy.choose(state)
         taken, nxt = sphere.move(poses[-1], wanted)
+        travelled += sphere.arc(poses[-1], nxt)
         directions.append(taken)
+        poses.append(nxt)
+
+
+def run_viewpoint_episode(
+    policy: ViewpointPolicy,
+    grasp_found: GraspFound,
+    *,
+    sphere: DiscreteViewsphere | None = None,
+    start: SpherePose = START,
+    max_steps: int = 6,
+    seed: int = 0,
+    observe: Callable[[tuple[SpherePose, ...]], Fused] | None = None,
+) -> Episode:
+    """:func:`run_episode` for a policy that picks viewpoints: ``steps`` counts the
+    viewpoints flown to (at most ``max_steps``), ``travelled`` the arcs between them,
+    ``directions`` is empty. A viewpoint already visited or off the sphere is a
+    ValueError naming it."""
+    if not (isinstance(max_steps, int) and max_steps >= 0):
+        raise ValueError(f"max_steps must be an int >= 0, got {max_steps!r}")
+    sphere = DiscreteViewsphere() if sphere is None else sphere
+    if not sphere.valid(start):
+        raise ValueError(f"start {start} is not a valid pose of the viewsphere")
+    policy.reset(seed)
+    poses = [start]
+    travelled = 0.0
+    while True:
+        if grasp_found(frozenset(pose_key(p) for p in poses)):
+            return Episode(tuple(poses), (), len(poses) - 1, True, True, travelled)
+        if len(poses) - 1 == max_steps:
+            return Episode(tuple(poses), (), max_steps, False, True, travelled)
+        nxt = policy.choose_view(ViewState(poses[-1], tuple(poses), len(poses) - 1, observe))
+        if not sphere.valid(nxt) or pose_key(nxt) in {pose_key(p) for p in poses}:
+            raise ValueError(f"{policy.name} chose {nxt}: visited or not on the viewsphere")
+        travelled += sphere.arc(poses[-1], nxt)
         poses.append(nxt)
 
 
@@ -221,7 +276,8 @@ def breadth_first(
                         continue
                     seen.add(state)
                     if found(path):
-                        return Episode(path, (*directions, d), depth, True)
+                        arc = depth * sphere.step
+                        return Episode(path, (*directions, d), depth, True, True, arc)
                     nxt_frontier.append((path, (*directions, d)))
             frontier = nxt_frontier
     except _Budget:
