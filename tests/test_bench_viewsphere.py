@@ -216,3 +216,38 @@ def test_ray_without_ray_is_a_clear_message(
     args = ["--objects", "025_mug", "--poses", "1", "--no-execute", "--ray"]
     assert _run(tmp_path / "run", *args) == 2
     assert "pip install 'heapgrasp[ray]'" in capsys.readouterr().err
+
+
+def _policy_file(path: Path, model: str) -> Path:
+    from heapgrasp.planning.viewsphere_learned import N_FEATURES, policy_onnx
+
+    w, b = np.zeros((8, N_FEATURES)), np.arange(8, dtype=np.float64)  # NW first
+    path.write_bytes(policy_onnx([(w, b)], hparams={"model": model}, provenance={}))
+    return path
+
+
+def test_a_learned_policy_runs_from_a_given_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    f = _policy_file(tmp_path / "mine.onnx", "dqn")
+    out = tmp_path / "run"
+    args = ["--objects", "013_apple", "--poses", "1", "--no-execute", "--policies", "dqn"]
+    assert _run(out, *args, "--weights", f"dqn={f}") == 0
+    results = json.loads((out / "results.json").read_text())
+    pose = results["policies"]["dqn"]["objects"]["013_apple"]["poses"][0]
+    assert set(pose["path"]) <= {"NW"} and len(pose["decisions_s"]) == pose["steps"]
+    assert results["settings"]["weights"]["dqn"]["path"] == str(f)
+    # Another file is another run.
+    other = _policy_file(tmp_path / "other.onnx", "dqn")
+    capsys.readouterr()
+    assert _run(out, *args, "--weights", f"dqn={other}") == 1
+    assert "other settings (weights)" in capsys.readouterr().err
+    # A file of another model, a bad entry, a missing file: refused, naming them.
+    wrong = _policy_file(tmp_path / "wrong.onnx", "pca-lr")
+    for bad, message in [
+        (f"dqn={wrong}", "holds a pca-lr policy, not dqn"),
+        ("svm=x.onnx", "--weights wants MODEL=FILE"),
+        (f"dqn={tmp_path / 'none.onnx'}", "not found"),
+    ]:
+        assert _run(tmp_path / "bad", *args, "--weights", bad) == 1
+        assert message in capsys.readouterr().err

@@ -11,7 +11,8 @@ CUDA device where onnxruntime has the CUDA execution provider (``onnxruntime-gpu
 batch) is dynamic, and these ``metadata_props``:
 
 =============================  ==========================================================
-``heapgrasp.kind``             ``"view-network"``, ``"grasp-network"`` or ``"grasp-critic"``
+``heapgrasp.kind``             ``"view-network"``, ``"grasp-network"``, ``"grasp-critic"``
+                               or ``"viewsphere-policy"``
 ``heapgrasp.format_version``   ``"1"`` (:data:`FORMAT_VERSION`)
 ``heapgrasp.hparams``          JSON object: the architecture and what the input must be
                                (``resolution``, ``in_channels``, ``view_shape``, ...)
@@ -29,7 +30,9 @@ Inputs and outputs by kind (``B`` the batch, ``R`` = ``hparams["resolution"]``,
 * ``grasp-network``: ``grid`` ``(B, C, R, R, R)`` → ``quality`` ``(B, 1, R, R, R)``,
   ``rotation`` ``(B, 4, R, R, R)``, ``width`` ``(B, 1, R, R, R)``;
 * ``grasp-critic``: ``features`` ``(B, F)`` → ``logits`` ``(B,)``,
-  ``F`` = ``hparams["n_features"]``.
+  ``F`` = ``hparams["n_features"]``;
+* ``viewsphere-policy``: ``state`` ``(B, F)`` → ``scores`` ``(B, 8)`` (one per direction
+  of seed 001's viewsphere), ``F`` = ``hparams["n_features"]``.
 
 **Errors.** A missing file raises :class:`FileNotFoundError` naming it. Any other bad
 file raises :class:`~heapgrasp.geometry.errors.WeightsError` whose message starts with
@@ -69,6 +72,7 @@ __all__ = [
     "META_SHA256",
     "META_VERSION",
     "SHIPPED_FILES",
+    "SHIPPED_VIEWSPHERE_POLICIES",
     "Kind",
     "OnnxNetwork",
     "content_digest",
@@ -81,9 +85,9 @@ __all__ = [
 
 F32 = npt.NDArray[np.float32]
 
-Kind = Literal["view-network", "grasp-network", "grasp-critic"]
+Kind = Literal["view-network", "grasp-network", "grasp-critic", "viewsphere-policy"]
 #: Every kind of network file.
-KINDS: Final = ("view-network", "grasp-network", "grasp-critic")
+KINDS: Final = ("view-network", "grasp-network", "grasp-critic", "viewsphere-policy")
 #: ``heapgrasp.format_version`` written by this version (files of versions 1 … this load).
 FORMAT_VERSION: Final = 1
 META_KIND: Final = "heapgrasp.kind"
@@ -96,6 +100,13 @@ SHIPPED_FILES: Final[Mapping[str, str]] = {
     "view-network": "view_network.onnx",
     "grasp-network": "grasp_network.onnx",
     "grasp-critic": "critic.onnx",
+}
+
+#: The shipped viewsphere policies (seed 001's learned policies), by model.
+SHIPPED_VIEWSPHERE_POLICIES: Final[Mapping[str, str]] = {
+    "pca-lr": "viewsphere_pca_lr.onnx",
+    "pca-lda": "viewsphere_pca_lda.onnx",
+    "dqn": "viewsphere_dqn.onnx",
 }
 
 #: The shipped grasp network of each input kind (``hparams["input_kind"]``): the
@@ -130,8 +141,11 @@ def write_atomically(data: bytes, path: str | os.PathLike[str]) -> Path:
 
 
 def shipped_weights(kind: Kind) -> Path | None:
-    """The shipped file of ``kind`` (:data:`SHIPPED_FILES`), or None when none ships."""
+    """The shipped file of ``kind`` (:data:`SHIPPED_FILES`), or None when none ships
+    (viewsphere policies: :data:`SHIPPED_VIEWSPHERE_POLICIES`)."""
     _check_kind(kind)
+    if kind not in SHIPPED_FILES:
+        return None
     p = weights_dir() / SHIPPED_FILES[kind]
     return p if p.is_file() else None
 
@@ -300,6 +314,9 @@ def _expected_io(kind: str, hp: Mapping[str, Any], p: Path) -> tuple[_Io, list[_
     if kind == "grasp-critic":
         f = _positive(hp, "n_features", p)
         return _Io("features", (None, f)), [_Io("logits", (None,))]
+    if kind == "viewsphere-policy":
+        f = _positive(hp, "n_features", p)
+        return _Io("state", (None, f)), [_Io("scores", (None, 8))]
     r = _positive(hp, "resolution", p)
     c = _positive(hp, "in_channels", p)
     grid = _Io("grid", (None, c, r, r, r))
@@ -350,7 +367,7 @@ class OnnxNetwork:
     ----------
     path : path-like
         The ``.onnx`` file.
-    kind : {"view-network", "grasp-network", "grasp-critic"}
+    kind : {"view-network", "grasp-network", "grasp-critic", "viewsphere-policy"}
         What the file must hold.
     device : str
         ``cpu`` (default), ``cuda``, ``cuda:N`` or ``auto`` (:func:`resolve_device`).

@@ -12,6 +12,9 @@ made. A pose without a grasp after them counts 6 steps. The policies:
   (:mod:`heapgrasp.planning.viewsphere_heuristics`);
 * ``information-gain``: the comparison of §4.2.3, which flies between 34 fixed
   viewpoints; its steps are viewpoints, and ``travelled_steps`` its path in 20° steps;
+* ``pca-lr``, ``pca-lda``, ``dqn``: seed 001's learned policies (§4.3), trained on the
+  training shapes only (:mod:`heapgrasp.planning.viewsphere_learned`), from the shipped
+  files or ``--weights MODEL=FILE``;
 * ``bfs``: breadth-first search, the fewest moves that reach a set of views yielding a
   grasp (each distinct set of views synthesised once; at most ``bfs_max_sets`` sets,
   past which the pose counts as not found and is marked incomplete).
@@ -73,7 +76,19 @@ __all__ = [
 ]
 
 #: The policies, in the order they are reported.
-POLICIES = ("random", "brick", "heuristic-2d", "heuristic-3d", "information-gain", "bfs")
+POLICIES = (
+    "random",
+    "brick",
+    "heuristic-2d",
+    "heuristic-3d",
+    "information-gain",
+    "pca-lr",
+    "pca-lda",
+    "dqn",
+    "bfs",
+)
+#: The learned policies: each runs a policy file (shipped, or ``--weights MODEL=FILE``).
+LEARNED = ("pca-lr", "pca-lda", "dqn")
 #: Random's share of BFS's success at step 2: at most the first is hard, at most the
 #: second medium, else easy (seed 001 §5.1).
 CLASS_THRESHOLDS = (0.40, 0.80)
@@ -96,31 +111,32 @@ class PoseTask:
     seed: int
     sensor: str
     execute: bool
+    weights: tuple[tuple[str, str], ...] = ()
+    """The learned policies' files, ``(model, path)``."""
 
 
-def _policy(name: str, world: Any, config: ViewsphereConfig) -> Any:
-    """The policy ``name`` for episodes in ``world``."""
+def _policy(
+    name: str, world: Any, config: ViewsphereConfig, weights: Mapping[str, str] | None = None
+) -> Any:
+    """The policy ``name`` for episodes in ``world`` (a learned one from ``weights``)."""
     from heapgrasp.planning import viewsphere_heuristics as vh
     from heapgrasp.planning.viewsphere_policies import BrickPolicy, RandomPolicy
 
     if name in ("random", "brick"):
         return {"random": RandomPolicy, "brick": BrickPolicy}[name]()
-    scorer = vh.ViewScorer(
-        world.sphere,
-        world.camera,
-        min_range=config.min_range,
-        max_range=config.max_range,
-        voxel=config.voxel,
-        neighbours=config.neighbours,
-        half_xy=config.object_half_xy,
-        max_height=config.object_max_height,
-    )
+    scorer = config.view_scorer(world.sphere, world.camera)
     if name == "heuristic-2d":
         return vh.Heuristic2D(scorer)
     if name == "heuristic-3d":
         return vh.Heuristic3D(scorer, half_length=world.grasps.gripper.max_opening)
     if name == "information-gain":
         return vh.InformationGain(scorer)
+    if name in LEARNED:
+        from heapgrasp.planning.viewsphere_learned import LearnedPolicy
+
+        if not weights or name not in weights:
+            raise ValueError(f"no policy file for {name}")
+        return LearnedPolicy.from_file(weights[name], scorer, name)
     raise ValueError(f"unknown policy {name!r}")
 
 
@@ -189,7 +205,7 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
                 max_sets=config.bfs_max_sets,
             )
         else:
-            policy = _Timed(_policy(name, world, config))
+            policy = _Timed(_policy(name, world, config, dict(task.weights)))
             run = run_viewpoint_episode if name == "information-gain" else run_episode
             episode = run(
                 policy,
@@ -650,7 +666,50 @@ def _settings(args: argparse.Namespace, config: ViewsphereConfig) -> dict[str, A
         "sensor": args.sensor,
         "execute": args.execute,
         "config": config.to_dict(),
+        "weights": {
+            model: {"path": path, "sha256": _sha256(path)} for model, path in args.weights_files
+        },
     }
+
+
+def _sha256(path: str) -> str:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def resolve_weights(policies: Sequence[str], given: Sequence[str]) -> tuple[tuple[str, str], ...]:
+    """The files of the learned ``policies``: ``given`` ``MODEL=FILE`` entries, else the
+    shipped ones. ValueError naming a bad entry, a missing file or a learned policy
+    without one; each file is opened and checked."""
+    from heapgrasp.inference import OnnxNetwork
+    from heapgrasp.planning.viewsphere_learned import shipped_policy
+
+    chosen: dict[str, str] = {}
+    for entry in given:
+        model, sep, path = entry.partition("=")
+        if not sep or model not in LEARNED or not path:
+            raise ValueError(
+                f"--weights wants MODEL=FILE with MODEL among {', '.join(LEARNED)}; got {entry!r}"
+            )
+        chosen[model] = str(Path(path).expanduser().absolute())
+    out = []
+    for model in (p for p in policies if p in LEARNED):
+        if model not in chosen:
+            shipped = shipped_policy(model)
+            if shipped is None:
+                raise ValueError(
+                    f"no {model} policy ships with this install: train one (heapgrasp train "
+                    f"viewsphere-policy --kind {model}) and pass --weights {model}=FILE"
+                )
+            chosen[model] = str(shipped)
+        network = OnnxNetwork(chosen[model], kind="viewsphere-policy", threads=1)
+        if network.hparams.get("model") != model:
+            raise ValueError(
+                f"{chosen[model]} holds a {network.hparams.get('model')} policy, not {model}"
+            )
+        out.append((model, chosen[model]))
+    return tuple(out)
 
 
 def _tasks(
@@ -677,6 +736,7 @@ def _tasks(
                     args.seed,
                     args.sensor,
                     args.execute,
+                    tuple(args.weights_files),
                 )
             )
     return tasks, done
@@ -765,6 +825,7 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
     from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
     config = ViewsphereConfig.from_dict({**ViewsphereConfig().to_dict(), **parse_sets(args.set)})
+    args.weights_files = resolve_weights(args.policies, args.weights)
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     (out / "records").mkdir(exist_ok=True)
@@ -915,6 +976,15 @@ def add_parser(
         default=None,
         help="output directory (default runs/bench-viewsphere-<time>); an existing one "
         "with the same settings is continued",
+    )
+    p.add_argument(
+        "--weights",
+        action="append",
+        default=[],
+        metavar="MODEL=FILE",
+        help="a learned policy's file instead of the shipped one (MODEL among "
+        + ", ".join(LEARNED)
+        + "; from heapgrasp train viewsphere-policy)",
     )
     p.add_argument("--no-figures", action="store_true", help="skip the plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -20,6 +20,16 @@ the grid the loop feeds the grasp network (Ŝ≥λ after Algorithm 1's random vi
 waypoints or no-vp's circle, and the VGN baseline's TSDF), and VGN's grasps labelled on
 the exact geometry, balanced (:mod:`heapgrasp.data.grasps`).
 
+``heapgrasp data viewsphere-paths``: seed 001's supervised viewsphere policies'
+(§4.3.1)::
+
+    heapgrasp data viewsphere-paths runs/vs-paths --scenes 2000
+
+Every scene puts a training prism at a random yaw, starts the camera at a random pose
+and explores randomly, three paths of up to five moves per direction; the label is the
+first direction of the shortest path that found a grasp
+(:mod:`heapgrasp.data.viewsphere_paths`).
+
 Shards are written whole or not at all; running the same command again continues where
 it stopped (finished shards are kept) and adding scenes (a larger ``--scenes``) adds
 shards; other settings than the dataset's are refused. Scenes run on a process pool
@@ -46,16 +56,23 @@ def _generate(args: argparse.Namespace, dataset: str, **settings: Any) -> int:
     from heapgrasp.data.grasps import GraspDataConfig
     from heapgrasp.data.shards import ShardFailure, generate
     from heapgrasp.data.views import ViewDataConfig
+    from heapgrasp.data.viewsphere_paths import ViewspherePathsConfig
 
-    kind = {"views": ViewDataConfig, "grasps": GraspDataConfig}[dataset]
-    config = kind(
-        scenes=args.scenes,
-        root_seed=args.seed,
-        split=args.split,
-        shard_size=args.shard_size,
-        max_objects=args.max_objects,
-        **settings,
-    )
+    kinds = {"views": ViewDataConfig, "grasps": GraspDataConfig}
+    common = {
+        "scenes": args.scenes,
+        "root_seed": args.seed,
+        "split": args.split,
+        "shard_size": args.shard_size,
+    }
+    try:
+        if dataset == "viewsphere-paths":
+            config: Any = ViewspherePathsConfig(**common, **settings)
+        else:
+            config = kinds[dataset](**common, max_objects=args.max_objects, **settings)
+    except ValueError as exc:
+        print(f"heapgrasp: error: {exc}", file=sys.stderr)
+        return 2
     out = Path(args.out)
     try:
         manifest = generate(
@@ -83,6 +100,16 @@ def _grasps(args: argparse.Namespace) -> int:
     return _generate(args, "grasps", input=args.input)
 
 
+def _viewsphere_paths(args: argparse.Namespace) -> int:
+    return _generate(
+        args,
+        "viewsphere-paths",
+        objects=args.objects,
+        tries=args.tries,
+        path_steps=args.path_steps,
+    )
+
+
 def _dataset_parser(
     sub: argparse._SubParsersAction[argparse.ArgumentParser],
     name: str,
@@ -90,6 +117,7 @@ def _dataset_parser(
     *,
     scenes: int,
     shard_size: int,
+    max_objects: bool = True,
 ) -> argparse.ArgumentParser:
     """A ``data`` subcommand with the options every dataset has."""
     p = sub.add_parser(
@@ -118,9 +146,10 @@ def _dataset_parser(
         default=shard_size,
         help=f"scenes per shard (default {shard_size})",
     )
-    p.add_argument(
-        "--max-objects", type=int_at_least(1), default=5, help="N_ob (Table I; default 5)"
-    )
+    if max_objects:
+        p.add_argument(
+            "--max-objects", type=int_at_least(1), default=5, help="N_ob (Table I; default 5)"
+        )
     p.add_argument(
         "--workers",
         type=int_at_least(1),
@@ -170,3 +199,36 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "depth (~8 s a scene)",
     )
     p.set_defaults(func=_grasps)
+    from heapgrasp.bench.argtypes import comma_choices
+    from heapgrasp.data.viewsphere_paths import SUPERVISED_OBJECTS
+    from heapgrasp.sim.viewsphere_objects import TRAIN_OBJECTS
+
+    p = _dataset_parser(
+        sub,
+        "viewsphere-paths",
+        "seed 001's supervised policies' data: random paths on the viewsphere, labelled "
+        "with the first direction of the shortest that found a grasp",
+        scenes=2000,
+        shard_size=20,
+        max_objects=False,
+    )
+    p.add_argument(
+        "--objects",
+        type=comma_choices("object", tuple(TRAIN_OBJECTS)),
+        default=SUPERVISED_OBJECTS,
+        help="training shapes the scenes take in turn (default: the paper's "
+        + ", ".join(SUPERVISED_OBJECTS)
+        + "; any of "
+        + ", ".join(TRAIN_OBJECTS)
+        + ")",
+    )
+    p.add_argument(
+        "--tries", type=int_at_least(1), default=3, help="random paths per direction (default 3)"
+    )
+    p.add_argument(
+        "--path-steps",
+        type=int_at_least(1),
+        default=5,
+        help="moves per path, at most (default 5)",
+    )
+    p.set_defaults(func=_viewsphere_paths)

@@ -303,10 +303,51 @@ def _grasps(args: argparse.Namespace) -> int:
     return 0
 
 
+def _viewsphere_policy(args: argparse.Namespace) -> int:
+    """``heapgrasp train viewsphere-policy``."""
+    from heapgrasp.data import viewsphere_train as vt
+
+    out = Path(args.out)
+    try:
+        if args.kind == "dqn":
+            if args.data or args.val:
+                raise _config_error("--kind dqn plays episodes; it reads no --data or --val")
+            try:
+                config = vt.DqnConfig(
+                    episodes=args.episodes, seed=args.seed, objects=tuple(args.objects or ())
+                )
+            except ValueError as exc:
+                raise _config_error(str(exc)) from None
+            metrics = vt.train_dqn(
+                config,
+                out,
+                progress=not args.no_progress,
+                log=lambda line: print(line, file=sys.stderr),
+            )
+            metrics = {k: v for k, v in metrics.items() if k != "history"}
+        else:
+            if not args.data or not args.val:
+                raise _config_error(f"--kind {args.kind} needs --data DIR and --val DIR")
+            try:
+                metrics = vt.train_linear(
+                    args.kind.removeprefix("pca-"),
+                    [Path(p) for p in args.data],
+                    [Path(p) for p in args.val],
+                    out,
+                    seed=args.seed,
+                )
+            except (FileNotFoundError, ValueError) as exc:
+                raise _config_error(str(exc)) from None
+    except ImportError as exc:
+        raise _config_error(str(exc)) from None
+    print(json.dumps(metrics, indent=1))
+    return 0
+
+
 def add_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
 ) -> argparse.ArgumentParser:
-    """Adds ``train views`` and ``train grasps``."""
+    """Adds ``train views``, ``train grasps`` and ``train viewsphere-policy``."""
     p = subparsers.add_parser(
         "train",
         help="train the learned networks (the view network, the grasp network)",
@@ -465,6 +506,54 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     _add_run_options(g, seed_help="initial weights, order, augmentation (0)")
     _add_cpu_options(g, "; 1 is faster while other jobs share the CPU")
     g.set_defaults(func=_grasps)
+    _add_viewsphere_policy(sub)
+
+
+def _add_viewsphere_policy(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    from heapgrasp.bench.argtypes import comma_choices
+    from heapgrasp.sim.viewsphere_objects import TRAIN_OBJECTS
+
+    p = sub.add_parser(
+        "viewsphere-policy",
+        help="train seed 001's learned viewsphere policies (PCA + LR / LDA, DQN)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=textwrap.dedent(
+            """\
+            Trains one of seed 001's learned viewsphere policies (section 4.3) and writes
+            OUT/viewsphere_<model>.onnx, OUT/metrics.json and OUT/metrics.png.
+
+              heapgrasp data viewsphere-paths runs/vs-train --scenes 2000
+              heapgrasp data viewsphere-paths runs/vs-val --scenes 200 --seed 1
+              heapgrasp train viewsphere-policy --kind pca-lr --data runs/vs-train \\
+                  --val runs/vs-val --out runs/vs-pca-lr
+              heapgrasp train viewsphere-policy --kind dqn --episodes 1300 --out runs/vs-dqn
+
+            pca-lr / pca-lda: scikit-learn on the paths datasets (standardise, PCA to 85 %
+            of the variance, logistic regression or LDA), folded into one ONNX layer.
+            dqn: PyTorch deep Q-learning by playing episodes on the training shapes in
+            the simulator (4 x 128 ReLU, epsilon-greedy, replay, +5 grasp / -1 a move,
+            gamma 0.9, learning rate 0.005, batch 64). Needs pip install 'heapgrasp[train]'.
+            Copy a file to python/heapgrasp/weights/ to ship it; 'heapgrasp bench
+            viewsphere --weights MODEL=FILE' runs one without shipping it.
+            """
+        ),
+    )
+    p.add_argument("--kind", required=True, choices=("pca-lr", "pca-lda", "dqn"))
+    p.add_argument("--data", nargs="+", metavar="DIR", help="paths datasets to fit (pca-*)")
+    p.add_argument("--val", nargs="+", metavar="DIR", help="paths datasets to measure (pca-*)")
+    p.add_argument("--out", required=True, metavar="OUT", help="output directory")
+    p.add_argument(
+        "--episodes", type=int_at_least(1), default=1300, help="dqn: episodes (default 1300)"
+    )
+    p.add_argument(
+        "--objects",
+        type=comma_choices("object", tuple(TRAIN_OBJECTS)),
+        default=None,
+        help="dqn: training shapes (default all: " + ", ".join(TRAIN_OBJECTS) + ")",
+    )
+    p.add_argument("--seed", type=int_at_least(0), default=0, help="random seed (default 0)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_viewsphere_policy)
 
 
 def _add_run_options(p: argparse.ArgumentParser, *, seed_help: str) -> None:

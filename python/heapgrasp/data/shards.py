@@ -122,6 +122,13 @@ class ShardedConfig(abc.ABC):
         d.pop("scenes")
         return d
 
+    def object_names(self) -> list[str]:
+        """The objects the dataset's scenes draw from (recorded in the manifest; a
+        dataset of other objects is not added to): the benchmark library's split."""
+        from heapgrasp.data.scenes import dataset_objects
+
+        return dataset_objects(self.split)
+
     @abc.abstractmethod
     def run_shard(self, shard: int) -> dict[str, Any]:
         """The arrays of ``shard`` (its scenes run in this process), with the sample
@@ -290,14 +297,12 @@ def generate(
     """
     from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
-    from heapgrasp.data.scenes import dataset_objects
-
     spec = config.spec
     started = time.monotonic()
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     out.mkdir(parents=True, exist_ok=True)
-    objects = dataset_objects(config.split)
+    objects = config.object_names()
     _check_compatible(out, spec, config, objects)
     todo = [s for s in range(config.shards) if not shard_path(out, s).exists()]
     _write_manifest(out, spec, config, objects, started)

@@ -52,6 +52,7 @@ from heapgrasp.planning.synthesis import (
     patched_pairs,
     rank_grasps,
 )
+from heapgrasp.planning.viewsphere_heuristics import ViewScorer
 from heapgrasp.planning.viewsphere_policies import PoseKey, pose_key
 
 __all__ = ["SEED001_CAMERA", "FoundGrasp", "ViewsphereConfig", "ViewsphereGrasps"]
@@ -162,6 +163,19 @@ class ViewsphereConfig:
             step=math.radians(self.step_deg),
             max_polar=math.radians(self.max_polar_deg),
             centre=(float(centre[0]), float(centre[1]), float(centre[2])),
+        )
+
+    def view_scorer(self, sphere: DiscreteViewsphere, camera: CameraSpec) -> ViewScorer:
+        """What the heuristic and learned policies score views with, on ``sphere``."""
+        return ViewScorer(
+            sphere,
+            camera,
+            min_range=self.min_range,
+            max_range=self.max_range,
+            voxel=self.voxel,
+            neighbours=self.neighbours,
+            half_xy=self.object_half_xy,
+            max_height=self.object_max_height,
         )
 
     @property
