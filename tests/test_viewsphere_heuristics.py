@@ -194,3 +194,75 @@ def test_a_stepping_episode_travels_a_step_per_move():
     )
     assert episode.steps == 2
     assert episode.travelled == pytest.approx(2 * SPHERE.step)
+
+
+# ----------------------------------------------------------- HEAPGrasp's view scoring
+def _box_world():
+    import trimesh
+    from heapgrasp.sim.viewsphere_world import ViewsphereWorld
+
+    box = trimesh.creation.box(extents=(0.04, 0.16, 0.10))
+    box.apply_translation((0.0, 0.0, 0.05))
+    return ViewsphereWorld([(box.vertices, box.faces)])
+
+
+def test_heapgrasp_views_carve_silhouettes_and_the_oracle_scores_them():
+    from heapgrasp.planning.viewsphere_heapgrasp import HeapgraspViewPolicy
+
+    world = _box_world()
+    policy = HeapgraspViewPolicy(
+        world.sphere, world.camera, world.silhouette, "oracle", scene=world.objects_scene
+    )
+    start = world.start
+    policy.carve((start,))
+    before = policy.grid.count_high_confidence()
+    assert before > 0
+    policy.carve((start,))  # carved once
+    assert policy.grid.count_high_confidence() == before
+    views = policy._views.next_views(start)
+    scores = policy.oracle_scores([p for _, p in views])
+    assert scores.shape == (len(views),) and (scores >= 0).all() and scores.max() > 0
+    # The chosen direction is the best-scoring one.
+    d = policy.choose(ViewState(start, (start,), 0))
+    assert d == views[int(np.argmax(scores))][0]
+    # Carving the chosen view leaves less to carve: its own score drops to ~0.
+    chosen = dict(views)[d]
+    policy.carve((chosen,))
+    assert policy.oracle_scores([chosen])[0] == pytest.approx(0.0, abs=1e-6)
+    policy.reset(0)
+    assert policy.grid.count_high_confidence() == 0
+    with pytest.raises(ValueError, match="scene"):
+        HeapgraspViewPolicy(world.sphere, world.camera, world.silhouette, "oracle")
+
+
+def test_the_view_network_scores_the_nearest_candidates():
+    from heapgrasp.inference import shipped_weights
+    from heapgrasp.planning.view_network import NetworkViewScorer
+    from heapgrasp.planning.viewsphere_heapgrasp import HeapgraspViewPolicy
+
+    path = shipped_weights("view-network")
+    if path is None:
+        pytest.skip("no shipped view network")
+    world = _box_world()
+    network = NetworkViewScorer(str(path))
+    policy = HeapgraspViewPolicy(
+        world.sphere,
+        world.camera,
+        world.silhouette,
+        "network",
+        scene=world.objects_scene,
+        network=network,
+    )
+    policy.carve((world.start,))
+    u_n, v_n = network.view_shape
+    # Two views in one candidate's cell read the same score; a view below the lowest
+    # ring reads the lowest ring's.
+    cell = 2 * math.pi / u_n
+    a = SpherePose(3 * cell, math.radians(10.0))
+    b = SpherePose(3 * cell + 0.3 * cell, math.radians(10.5))
+    low = SpherePose(3 * cell, math.radians(80.0))
+    edge = SpherePose(3 * cell, math.radians(36.0) * (v_n - 1) / v_n)
+    s = policy.network_scores(world.start, [a, b, low, edge])
+    assert s[0] == s[1] and s[2] == s[3]
+    policy.choose(ViewState(world.start, (world.start,), 0))
+    assert len(policy.agreement) == 1

@@ -15,6 +15,11 @@ made. A pose without a grasp after them counts 6 steps. The policies:
 * ``pca-lr``, ``pca-lda``, ``dqn``: seed 001's learned policies (§4.3), trained on the
   training shapes only (:mod:`heapgrasp.planning.viewsphere_learned`), from the shipped
   files or ``--weights MODEL=FILE``;
+* ``heapgrasp-net``, ``heapgrasp-oracle``: HEAPGrasp's eq. 14 on a grid carved from the
+  views' silhouettes (no depth), scored by the shipped view network or, privileged, by
+  the exact oracle reading the true meshes
+  (:mod:`heapgrasp.planning.viewsphere_heapgrasp`); ``oracle_agreement`` records, per
+  decision of the network, whether the oracle chose alike;
 * ``bfs``: breadth-first search, the fewest moves that reach a set of views yielding a
   grasp (each distinct set of views synthesised once; at most ``bfs_max_sets`` sets,
   past which the pose counts as not found and is marked incomplete).
@@ -85,6 +90,8 @@ POLICIES = (
     "pca-lr",
     "pca-lda",
     "dqn",
+    "heapgrasp-net",
+    "heapgrasp-oracle",
     "bfs",
 )
 #: The learned policies: each runs a policy file (shipped, or ``--weights MODEL=FILE``).
@@ -131,6 +138,26 @@ def _policy(
         return vh.Heuristic3D(scorer, half_length=world.grasps.gripper.max_opening)
     if name == "information-gain":
         return vh.InformationGain(scorer)
+    if name in ("heapgrasp-oracle", "heapgrasp-net"):
+        from heapgrasp.planning.viewsphere_heapgrasp import HeapgraspViewPolicy
+
+        network = None
+        if name == "heapgrasp-net":
+            from heapgrasp.inference import shipped_weights
+            from heapgrasp.planning.view_network import NetworkViewScorer
+
+            path = shipped_weights("view-network")
+            if path is None:
+                raise ValueError("heapgrasp-net needs the shipped view network; none ships")
+            network = NetworkViewScorer(str(path))
+        return HeapgraspViewPolicy(
+            world.sphere,
+            world.camera,
+            world.silhouette,
+            "oracle" if name == "heapgrasp-oracle" else "network",
+            scene=world.objects_scene,
+            network=network,
+        )
     if name in LEARNED:
         from heapgrasp.planning.viewsphere_learned import LearnedPolicy
 
@@ -147,6 +174,12 @@ class _Timed:
         self.policy = policy
         self.name = policy.name
         self.times: list[float] = []
+
+    @property
+    def agreement(self) -> list[bool] | None:
+        """The HEAPGrasp network policy's agreement with the oracle, per decision."""
+        out: list[bool] | None = getattr(self.policy, "agreement", None)
+        return out
 
     def reset(self, seed: int) -> None:
         self.times = []
@@ -196,6 +229,7 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
         t = time.perf_counter()
         sets_before = world.grasps.sets_evaluated
         decisions: list[float] = []
+        agreement: list[bool] | None = None
         if name == "bfs":
             episode = breadth_first(
                 world.grasp_found,
@@ -217,6 +251,7 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
                 observe=world.grasps.fused,
             )
             decisions = policy.times
+            agreement = policy.agreement
         grasp = world.grasp(list(episode.poses)) if episode.found else None
         seconds = time.perf_counter() - t
         entry: dict[str, Any] = {
@@ -234,6 +269,7 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
             "executed": None,
             "seconds": round(seconds, 4),
             "decisions_s": [round(t, 5) for t in decisions],
+            **({"oracle_agreement": agreement} if agreement else {}),
             "sets_synthesised": world.grasps.sets_evaluated - sets_before,
         }
         if executor is not None and grasp is not None:

@@ -75,6 +75,8 @@ class ViewsphereWorld:
         self.camera = camera
         self.start = self.config.start
         self._scene = MeshScene()
+        self.objects_scene = MeshScene()
+        """The object's meshes alone (its silhouettes; HEAPGrasp's oracle reads them)."""
         self._object_ids: list[int] = []
         for k, (vertices, faces) in enumerate(meshes):
             v = np.ascontiguousarray(vertices, dtype=np.float64)
@@ -82,6 +84,7 @@ class ViewsphereWorld:
             if v.ndim != 2 or v.shape[1] != 3 or not np.isfinite(v).all():
                 raise ValueError(f"meshes[{k}]: vertices must be finite (V, 3)")
             self._object_ids.append(self._scene.add_mesh(v, f, np.eye(4)))
+            self.objects_scene.add_mesh(v, f, np.eye(4))
         tv, tf = _table_mesh()
         self._scene.add_mesh(tv, tf, np.eye(4))
         self._table = MeshScene()
@@ -109,6 +112,11 @@ class ViewsphereWorld:
         key = pose_key(pose)
         rng = np.random.default_rng([self.seed, round(key[0] * 1e6), round(key[1] * 1e6)])
         return self.depth_model.apply(rng, ideal, background, category)
+
+    def silhouette(self, pose: SpherePose) -> npt.NDArray[np.bool_]:
+        """The object's silhouette from ``pose`` (ideal segmentation: every optical
+        category segments alike, HEAPGrasp's premise)."""
+        return self.objects_scene.render_mask(self._core_camera, self.sphere.camera_pose(pose))
 
     def depth(self, pose: SpherePose) -> npt.NDArray[np.float32]:
         """The view's depth image (rendered once)."""
