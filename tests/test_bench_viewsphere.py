@@ -213,7 +213,7 @@ def test_ray_without_ray_is_a_clear_message(
     import sys
 
     monkeypatch.setitem(sys.modules, "ray", None)  # importing it fails
-    args = ["--objects", "025_mug", "--poses", "1", "--no-execute", "--ray"]
+    args = ["--objects", "025_mug", "--poses", "1", "--no-execute", "--policies", "brick", "--ray"]
     assert _run(tmp_path / "run", *args) == 2
     assert "pip install 'heapgrasp[ray]'" in capsys.readouterr().err
 

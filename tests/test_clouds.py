@@ -60,9 +60,9 @@ def test_voxel_downsample_keeps_each_cells_centroid_in_any_order():
     shuffled = voxel_downsample(pts[rng.permutation(len(pts))], 0.0075)
     np.testing.assert_allclose(shuffled, got, atol=1e-15)  # fusion is order-free
     assert voxel_downsample(np.zeros((0, 3)), 0.01).shape == (0, 3)
-    with pytest.raises(ValueError, match="voxel must be finite and > 0"):
+    with pytest.raises(ValueError, match="voxel: expected a finite value > 0"):
         voxel_downsample(pts, 0.0)
-    with pytest.raises(ValueError, match="NaN"):
+    with pytest.raises(ValueError, match="points: contains a non-finite value"):
         voxel_downsample([[np.nan, 0, 0]], 0.01)
 
 

@@ -1924,6 +1924,77 @@ def test_grasp_region_and_surfel_visibility(data):
     np.testing.assert_array_equal(out, _core.surfel_visibility(pts, nrm, eye, tgt, **kw))
 
 
+# ------------------------------------------------------------------- voxel_downsample
+def _reference_voxels(pts: np.ndarray, voxel: float) -> np.ndarray:
+    """The NumPy down-sampling the core replaced: centroids per cell, keys sorted."""
+    if len(pts) == 0:
+        return np.zeros((0, 3))
+    keys = np.floor(pts / voxel).astype(np.int64)
+    _, inverse = np.unique(keys, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    counts = np.bincount(inverse).astype(np.float64)
+    sums = np.column_stack([np.bincount(inverse, weights=pts[:, k]) for k in range(3)])
+    return sums / counts[:, None]
+
+
+@FUZZ
+@given(data=st.data())
+def test_voxel_downsample(data):
+    EXAMPLES_RUN["test_voxel_downsample"] += 1
+    names = ["points", "voxel"]
+    plan = Plan(data, names)
+    n = data.draw(st.integers(0, 40))
+    points, same, pts = cloud_arg(data, n, "points" in plan)
+    voxel = data.draw(float_arg(st.floats(-0.01, 0.1))) if "voxel" in plan else 0.02
+    out = call("voxel_downsample", names, _core.voxel_downsample, points, voxel)
+    if not ok(out):
+        assert plan.bad, "a valid call was refused"
+        return
+    assert same
+    np.testing.assert_allclose(out, _reference_voxels(pts, float(voxel)), rtol=1e-12, atol=1e-15)
+
+
+@FUZZ
+@given(data=st.data())
+def test_depth_voxels(data):
+    from heapgrasp.geometry.camera import CameraSpec
+    from heapgrasp.perception.clouds import backproject
+
+    EXAMPLES_RUN["test_depth_voxels"] += 1
+    names = ["depth", "camera", "cam2world", "min_range", "max_range", "voxel"]
+    plan = Plan(data, names)
+    cam = data.draw(small_camera())
+    raw = np.asarray(
+        data.draw(
+            hnp.arrays(np.float32, (cam.height, cam.width), elements=st.floats(0.0, 2.0, width=32))
+        )
+    )
+    depth, depth_same = data.draw(maybe_array(raw, "depth" in plan))
+    camera = data.draw(camera_or_junk(cam, "camera" in plan))
+    pose, pose_valid = data.draw(pose_arg((0.0, 0.0, 0.0), 0.6, "cam2world" in plan))
+    kw = {
+        "min_range": data.draw(float_arg(st.floats(0.0, 0.5))) if "min_range" in plan else 0.1,
+        "max_range": data.draw(float_arg(st.floats(0.0, 5.0))) if "max_range" in plan else 3.0,
+        "voxel": data.draw(float_arg(st.floats(-0.01, 0.1))) if "voxel" in plan else 0.02,
+    }
+    out = call("depth_voxels", names, _core.depth_voxels, depth, camera, pose, **kw)
+    if not ok(out):
+        assert plan.bad, "a valid call was refused"
+        return
+    assert depth_same and pose_valid
+    spec = CameraSpec(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy)
+    cloud = backproject(
+        raw,
+        spec,
+        canonical(pose, np.float64),
+        min_range=float(kw["min_range"]),
+        max_range=float(kw["max_range"]),
+    )
+    want = _reference_voxels(cloud, float(kw["voxel"]))
+    assert out.shape == want.shape
+    np.testing.assert_allclose(out, want, rtol=1e-9, atol=1e-12)
+
+
 def test_every_entry_point_is_fuzzed():
     """The tests above cover every public name of the native module."""
     covered = {
@@ -1949,6 +2020,8 @@ def test_every_entry_point_is_fuzzed():
         "seen_empty",
         "grasp_region",
         "surfel_visibility",
+        "voxel_downsample",
+        "depth_voxels",
         "point_normals",
         "contact_patches",
         "antipodal_pairs",

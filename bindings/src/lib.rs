@@ -52,6 +52,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(hand_points::hand_point_counts, m)?)?;
     m.add_function(wrap_pyfunction!(hand_points::first_free_pose, m)?)?;
     m.add_function(wrap_pyfunction!(clouds::seen_empty, m)?)?;
+    m.add_function(wrap_pyfunction!(clouds::voxel_downsample, m)?)?;
+    m.add_function(wrap_pyfunction!(clouds::depth_voxels, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::point_normals, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::contact_patches, m)?)?;
     m.add_function(wrap_pyfunction!(synthesis::antipodal_pairs, m)?)?;

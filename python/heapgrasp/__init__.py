@@ -34,6 +34,7 @@ from heapgrasp._core import (
     __version__,
     antipodal_pairs,
     contact_patches,
+    depth_voxels,
     first_free_pose,
     gaussian_filter3d,
     grasp_region,
@@ -46,6 +47,7 @@ from heapgrasp._core import (
     score_views,
     seen_empty,
     surfel_visibility,
+    voxel_downsample,
 )
 
 __all__ = [
@@ -64,6 +66,7 @@ __all__ = [
     "__version__",
     "antipodal_pairs",
     "contact_patches",
+    "depth_voxels",
     "first_free_pose",
     "gaussian_filter3d",
     "grasp_region",
@@ -76,4 +79,5 @@ __all__ = [
     "score_views",
     "seen_empty",
     "surfel_visibility",
+    "voxel_downsample",
 ]

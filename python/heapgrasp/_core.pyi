@@ -39,6 +39,7 @@ __all__ = [
     "antipodal_grasps",
     "antipodal_pairs",
     "contact_patches",
+    "depth_voxels",
     "first_free_pose",
     "gaussian_filter3d",
     "grasp_region",
@@ -52,6 +53,7 @@ __all__ = [
     "score_views",
     "seen_empty",
     "surfel_visibility",
+    "voxel_downsample",
 ]
 
 __version__: str
@@ -388,6 +390,31 @@ def antipodal_pairs(
     [0, 180]); ``A``, ``B`` the angles between the contact line and each normal.
 
     Returns (first, second, quality, width), ordered by (i, j).
+    """
+
+def depth_voxels(
+    depth: _F32,
+    camera: PinholeCamera,
+    cam2world: _F64,
+    *,
+    min_range: float,
+    max_range: float,
+    voxel: float,
+) -> _F64:
+    """The world points of a depth view whose depth (m along the optical axis) lies in
+    ``[min_range, max_range]``, down-sampled as :func:`voxel_downsample` does (pixels in
+    row-major order; pixel ``(u, v)`` on the ray ``((u − cx) / fx, (v − cy) / fy, 1)``).
+
+    ``depth`` (H, W) float32, the camera's size; ``cam2world`` a rigid (4, 4) pose.
+    Returns (M, 3) float64.
+    """
+
+def voxel_downsample(points: _F64, voxel: float) -> _F64:
+    """One point per occupied ``voxel``-sized cell of a lattice anchored at the origin:
+    the centroid of the cell's points (summed in the points' order), cells in
+    lexicographic order of their index ``⌊p / voxel⌋``.
+
+    ``points`` (N, 3) float64, finite; ``voxel`` > 0 (m). Returns (M, 3) float64.
     """
 
 def grasp_region(

@@ -1,5 +1,5 @@
-//! Seed 001's unexplored region (§3.2): which of its points a depth view shows to be
-//! empty.
+//! Seed 001's point clouds (§3.2): voxel down-sampling of the fused views, and which
+//! points of the unexplored region a depth view shows to be empty.
 //!
 //! A point is *seen empty* by a view when it lies in front of the camera, projects into
 //! the image ([`PinholeCamera::project`]'s convention), the table does not hide it
@@ -8,6 +8,8 @@
 //! `occlusion ×` the point's own depth (the ray passed it). Points off the image stay
 //! unexplored (the public code's bug, removing them, is not repeated). Points are split
 //! over threads in contiguous ranges; each answer depends on its point alone.
+
+use std::collections::HashMap;
 
 use nalgebra::Point3;
 
@@ -122,9 +124,176 @@ pub fn seen_empty(
     Ok(chunks.concat())
 }
 
+/// Centroids of points per cell of a lattice anchored at the origin, summed in the order
+/// the points come.
+struct Voxels {
+    voxel: f64,
+    cells: HashMap<[i64; 3], usize>,
+    keys: Vec<[i64; 3]>,
+    sums: Vec<[f64; 4]>,
+}
+
+impl Voxels {
+    fn new(voxel: f64) -> Result<Self> {
+        if !(voxel.is_finite() && voxel > 0.0) {
+            return Err(Error::value("voxel", voxel, "expected a finite value > 0"));
+        }
+        Ok(Self {
+            voxel,
+            cells: HashMap::new(),
+            keys: Vec::new(),
+            sums: Vec::new(),
+        })
+    }
+
+    fn add(&mut self, p: [f64; 3]) {
+        let key = p.map(|v| (v / self.voxel).floor() as i64);
+        let (keys, sums) = (&mut self.keys, &mut self.sums);
+        let slot = *self.cells.entry(key).or_insert_with(|| {
+            keys.push(key);
+            sums.push([0.0; 4]);
+            keys.len() - 1
+        });
+        let sum = &mut self.sums[slot];
+        sum[0] += p[0];
+        sum[1] += p[1];
+        sum[2] += p[2];
+        sum[3] += 1.0;
+    }
+
+    /// The centroids, cells in lexicographic order of their index.
+    fn centroids(self) -> Vec<[f64; 3]> {
+        let mut order: Vec<usize> = (0..self.keys.len()).collect();
+        order.sort_unstable_by_key(|&i| self.keys[i]);
+        order
+            .into_iter()
+            .map(|i| {
+                let s = self.sums[i];
+                [s[0] / s[3], s[1] / s[3], s[2] / s[3]]
+            })
+            .collect()
+    }
+}
+
+/// One point per occupied `voxel`-sized cell of a lattice anchored at the origin (flat
+/// `(N, 3)` points): the centroid of the cell's points (summed in the points' order),
+/// cells in lexicographic order of their index `⌊p / voxel⌋`.
+pub fn voxel_downsample(points: &[f64], voxel: f64) -> Result<Vec<[f64; 3]>> {
+    let mut voxels = Voxels::new(voxel)?;
+    if !points.len().is_multiple_of(3) {
+        return Err(Error::Shape {
+            name: "points".into(),
+            expected: "(N, 3)".into(),
+            got: format!("{} values", points.len()),
+        });
+    }
+    if let Some(k) = points.iter().position(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            name: "points".into(),
+            position: format!("[{}, {}]", k / 3, k % 3),
+        });
+    }
+    for p in points.chunks_exact(3) {
+        voxels.add([p[0], p[1], p[2]]);
+    }
+    Ok(voxels.centroids())
+}
+
+/// The world points of a depth image (row-major `height × width`, metres along the
+/// optical axis, from `camera` at `cam2world`) whose depth lies in `[min_range,
+/// max_range]`, down-sampled as [`voxel_downsample`] does (pixels in row-major order):
+/// pixel `(u, v)` lies on the ray `((u − cx) / fx, (v − cy) / fy, 1)`.
+pub fn depth_voxels(
+    depth: &[f32],
+    camera: &PinholeCamera,
+    cam2world: &Pose,
+    min_range: f64,
+    max_range: f64,
+    voxel: f64,
+) -> Result<Vec<[f64; 3]>> {
+    camera.check_image("depth", depth.len())?;
+    if !(min_range.is_finite() && min_range >= 0.0) {
+        return Err(Error::value(
+            "min_range",
+            min_range,
+            "expected a finite value >= 0",
+        ));
+    }
+    if !(max_range.is_finite() && max_range > min_range) {
+        return Err(Error::value(
+            "max_range",
+            max_range,
+            "expected a finite value > min_range",
+        ));
+    }
+    let mut voxels = Voxels::new(voxel)?;
+    let width = camera.width as usize;
+    for (k, &d) in depth.iter().enumerate() {
+        let z = f64::from(d);
+        if !(z.is_finite() && z >= min_range && z <= max_range) {
+            continue;
+        }
+        let (u, v) = ((k % width) as f64, (k / width) as f64);
+        let c = Point3::new(
+            (u - camera.cx) / camera.fx * z,
+            (v - camera.cy) / camera.fy * z,
+            z,
+        );
+        let w = cam2world.transform_point(&c);
+        voxels.add([w.x, w.y, w.z]);
+    }
+    Ok(voxels.centroids())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_level_depth_view_gives_the_plane_in_its_range() {
+        let (camera, pose) = above();
+        // 1 m everywhere (the plane z = 0), nothing measured in the first row, too near
+        // in the second.
+        let mut depth = vec![1.0f32; 64 * 48];
+        depth[..64].fill(0.0);
+        depth[64..128].fill(0.05);
+        let out = depth_voxels(&depth, &camera, &pose, 0.1, 3.0, 0.01).expect("valid");
+        assert!(!out.is_empty());
+        assert!(out.iter().all(|p| p[2].abs() < 1e-12));
+        // The plane seen: x in ±0.63 m, y within the rows measured.
+        let (lo, hi) = out
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p[0]), b.max(p[0])));
+        assert!(lo > -0.64 && hi < 0.65 && hi - lo > 1.2);
+        // As many cells as the points' centroids fall in distinct keys, sorted.
+        let keys: Vec<[i64; 3]> = out
+            .iter()
+            .map(|p| p.map(|v| (v / 0.01).floor() as i64))
+            .collect();
+        assert!(keys.windows(2).all(|w| w[0] < w[1]));
+        assert!(depth_voxels(&depth[1..], &camera, &pose, 0.1, 3.0, 0.01).is_err());
+        assert!(depth_voxels(&depth, &camera, &pose, 0.5, 0.4, 0.01).is_err());
+        assert!(depth_voxels(&depth, &camera, &pose, 0.1, 3.0, -1.0).is_err());
+    }
+
+    #[test]
+    fn voxels_hold_their_points_centroid_in_key_order() {
+        let points = [
+            0.012, 0.0, 0.0, // cell (1, 0, 0)
+            0.001, 0.002, 0.0, // cell (0, 0, 0)
+            0.003, 0.004, 0.0, // cell (0, 0, 0)
+            -0.001, 0.0, 0.0, // cell (-1, 0, 0)
+        ];
+        let out = voxel_downsample(&points, 0.01).expect("valid");
+        assert_eq!(out.len(), 3);
+        assert_eq!(out[0], [-0.001, 0.0, 0.0]);
+        assert!((out[1][0] - 0.002).abs() < 1e-15 && (out[1][1] - 0.003).abs() < 1e-15);
+        assert_eq!(out[2], [0.012, 0.0, 0.0]);
+        assert!(voxel_downsample(&[], 0.01).expect("valid").is_empty());
+        assert!(voxel_downsample(&points, 0.0).is_err());
+        assert!(voxel_downsample(&points[..4], 0.01).is_err());
+        assert!(voxel_downsample(&[f64::NAN, 0.0, 0.0], 0.01).is_err());
+    }
 
     fn params() -> SeenParams {
         SeenParams {

@@ -6,8 +6,10 @@ whether the views taken so far yield a grasp. :class:`ViewsphereGrasps` answers 
 depth images (any source: :class:`heapgrasp.sim.viewsphere_world.ViewsphereWorld`
 renders them; a real camera would capture them):
 
-1. each view's points (:func:`~heapgrasp.perception.clouds.backproject`, the sensor's
-   range) down-sampled at the voxel; a set of views fuses them (order-free);
+1. each view's points (the sensor's range) down-sampled at the voxel (the core's
+   :func:`heapgrasp.depth_voxels`: :func:`~heapgrasp.perception.clouds.backproject` and
+   :func:`~heapgrasp.perception.clouds.voxel_downsample` in one pass); a set of views
+   fuses them (order-free);
 2. the table (RANSAC, within 10° of level), fitted once to what the first view shows
    (the table does not move; refitting it to every set of views changed nothing but the
    time), and the object's points above it, in a box around the viewsphere's centre;
@@ -35,13 +37,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from heapgrasp import depth_voxels
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
 from heapgrasp.geometry.viewsphere import DiscreteViewsphere, SpherePose
 from heapgrasp.perception.clouds import (
     TablePlane,
     UnexploredRegion,
-    backproject,
     fit_table,
     voxel_downsample,
 )
@@ -240,6 +242,7 @@ class ViewsphereGrasps:
         self.config = ViewsphereConfig() if config is None else config
         self.sphere = sphere
         self.camera = camera
+        self._core_camera = camera.core()
         self.gripper = gripper
         self._render = render
         self._depth: dict[PoseKey, Depth] = {}
@@ -270,14 +273,14 @@ class ViewsphereGrasps:
         key = pose_key(pose)
         if key not in self._points:
             c = self.config
-            cloud = backproject(
+            self._points[key] = depth_voxels(
                 self.depth(pose),
-                self.camera,
+                self._core_camera,
                 self.sphere.camera_pose(pose),
                 min_range=c.min_range,
                 max_range=c.max_range,
+                voxel=c.voxel,
             )
-            self._points[key] = voxel_downsample(cloud, c.voxel)
         return self._points[key]
 
     def table(self, pose: SpherePose) -> TablePlane | None:

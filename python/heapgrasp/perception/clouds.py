@@ -31,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from heapgrasp import seen_empty
+from heapgrasp import voxel_downsample as core_voxel_downsample
 from heapgrasp.geometry.camera import CameraSpec
 
 __all__ = [
@@ -121,27 +122,10 @@ def project(
 
 def voxel_downsample(points: npt.ArrayLike, voxel: float) -> F64:
     """One point per occupied ``voxel``-sized cell (a lattice anchored at the origin): the
-    centroid of the cell's points, cells in lexicographic order of their index."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    if not (math.isfinite(voxel) and voxel > 0.0):
-        raise ValueError(f"voxel must be finite and > 0, got {voxel}")
-    if len(pts) == 0:
-        return np.zeros((0, 3))
-    if not np.isfinite(pts).all():
-        raise ValueError("points hold NaN or infinity")
-    keys = np.floor(pts / voxel).astype(np.int64)
-    keys -= keys.min(axis=0)
-    span = keys.max(axis=0) + 1
-    if float(np.prod(span.astype(np.float64))) < 2.0**62:
-        # One integer per cell, in the cells' lexicographic order: a 1-D unique.
-        flat = (keys[:, 0] * span[1] + keys[:, 1]) * span[2] + keys[:, 2]
-        _, inverse = np.unique(flat, return_inverse=True)
-    else:  # a cloud too wide for one integer key
-        _, inverse = np.unique(keys, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    counts = np.bincount(inverse).astype(np.float64)
-    sums = np.column_stack([np.bincount(inverse, weights=pts[:, k]) for k in range(3)])
-    out: F64 = sums / counts[:, None]
+    centroid of the cell's points, cells in lexicographic order of their index (the Rust
+    core's :func:`heapgrasp.voxel_downsample`; ValueError on a bad voxel or NaN)."""
+    pts = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    out: F64 = core_voxel_downsample(pts, float(voxel))
     return out
 
 
