@@ -128,6 +128,8 @@ pub fn seen_empty(
 /// the points come.
 struct Voxels {
     voxel: f64,
+    /// The last point's cell and slot: neighbouring pixels mostly share a cell.
+    last: Option<([i64; 3], usize)>,
     cells: HashMap<[i64; 3], usize>,
     keys: Vec<[i64; 3]>,
     sums: Vec<[f64; 4]>,
@@ -140,6 +142,7 @@ impl Voxels {
         }
         Ok(Self {
             voxel,
+            last: None,
             cells: HashMap::new(),
             keys: Vec::new(),
             sums: Vec::new(),
@@ -148,12 +151,19 @@ impl Voxels {
 
     fn add(&mut self, p: [f64; 3]) {
         let key = p.map(|v| (v / self.voxel).floor() as i64);
-        let (keys, sums) = (&mut self.keys, &mut self.sums);
-        let slot = *self.cells.entry(key).or_insert_with(|| {
-            keys.push(key);
-            sums.push([0.0; 4]);
-            keys.len() - 1
-        });
+        let slot = match self.last {
+            Some((k, slot)) if k == key => slot,
+            _ => {
+                let (keys, sums) = (&mut self.keys, &mut self.sums);
+                let slot = *self.cells.entry(key).or_insert_with(|| {
+                    keys.push(key);
+                    sums.push([0.0; 4]);
+                    keys.len() - 1
+                });
+                self.last = Some((key, slot));
+                slot
+            }
+        };
         let sum = &mut self.sums[slot];
         sum[0] += p[0];
         sum[1] += p[1];
