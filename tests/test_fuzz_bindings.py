@@ -1827,15 +1827,9 @@ def test_contact_patches_and_antipodal_pairs(data):
 
 
 # ------------------------------------------------------------------------- seen_empty
-@FUZZ
-@given(data=st.data())
-def test_seen_empty(data):
-    EXAMPLES_RUN["test_seen_empty"] += 1
-    names = ["points", "depth", "camera", "cam2world", "min_range", "max_range", "occlusion"]
-    names += ["floor_z", "threads"]
-    plan = Plan(data, names)
-    n = data.draw(st.integers(0, 30))
-    points, same, pts = cloud_arg(data, n, "points" in plan)
+def _depth_view(data: Any, plan: Any) -> tuple[Any, ...]:
+    """A depth view's arguments, sometimes corrupted: ``(cam, raw depth, depth,
+    depth_same, camera, pose, pose_valid)``."""
     cam = data.draw(small_camera())
     raw = np.asarray(
         data.draw(
@@ -1845,6 +1839,19 @@ def test_seen_empty(data):
     depth, depth_same = data.draw(maybe_array(raw, "depth" in plan))
     camera = data.draw(camera_or_junk(cam, "camera" in plan))
     pose, pose_valid = data.draw(pose_arg((0.0, 0.0, 0.0), 0.6, "cam2world" in plan))
+    return cam, raw, depth, depth_same, camera, pose, pose_valid
+
+
+@FUZZ
+@given(data=st.data())
+def test_seen_empty(data):
+    EXAMPLES_RUN["test_seen_empty"] += 1
+    names = ["points", "depth", "camera", "cam2world", "min_range", "max_range", "occlusion"]
+    names += ["floor_z", "threads"]
+    plan = Plan(data, names)
+    n = data.draw(st.integers(0, 30))
+    points, same, pts = cloud_arg(data, n, "points" in plan)
+    cam, raw, depth, depth_same, camera, pose, pose_valid = _depth_view(data, plan)
     kw = {
         "min_range": data.draw(float_arg(st.floats(0.0, 0.5))) if "min_range" in plan else 0.1,
         "max_range": data.draw(float_arg(st.floats(0.0, 5.0))) if "max_range" in plan else 3.0,
@@ -1856,10 +1863,12 @@ def test_seen_empty(data):
     if not ok(out):
         assert plan.bad, "a valid call was refused"
         return
-    assert same and depth_same and pose_valid
-    assert out.dtype == np.bool_ and out.shape == (n,)
+    assert depth_same and pose_valid
+    del same, pts  # any (N, 3) points are valid: compare with what was passed
+    passed = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    assert out.dtype == np.bool_ and out.shape == (len(passed),)
     kw["threads"] = 1
-    again = _core.seen_empty(pts, raw, cam, canonical(pose, np.float64), **kw)
+    again = _core.seen_empty(passed, raw, cam, canonical(pose, np.float64), **kw)
     np.testing.assert_array_equal(out, again)
 
 
@@ -1895,10 +1904,12 @@ def test_grasp_region_and_surfel_visibility(data):
     }
     out = call("grasp_region", names, _core.grasp_region, points, normals, targets, **kw)
     if ok(out):
-        assert same and normals_same and targets_same
-        assert out.dtype == np.bool_ and out.shape == (m,)
+        assert same and normals_same
+        del targets_same, tgt  # any (M, 3) targets are valid: compare with what was passed
+        passed = np.asarray(targets, dtype=np.float64).reshape(-1, 3)
+        assert out.dtype == np.bool_ and out.shape == (len(passed),)
         kw["threads"] = 1
-        np.testing.assert_array_equal(out, _core.grasp_region(pts, nrm, tgt, **kw))
+        np.testing.assert_array_equal(out, _core.grasp_region(pts, nrm, passed, **kw))
     else:
         assert plan.bad, "a valid call was refused"
     names = ["points", "normals", "eyes", "targets", "radius", "threads"]
@@ -1918,10 +1929,13 @@ def test_grasp_region_and_surfel_visibility(data):
     if not ok(out):
         assert plan.bad, "a valid call was refused"
         return
-    assert same and normals_same and eyes_same and targets_same
-    assert out.dtype == np.bool_ and out.shape == (v, m)
+    assert same and normals_same
+    del eyes_same, targets_same, eye, tgt  # any (V, 3) eyes and (M, 3) targets are valid
+    eyes_in = np.asarray(eyes, dtype=np.float64).reshape(-1, 3)
+    targets_in = np.asarray(targets, dtype=np.float64).reshape(-1, 3)
+    assert out.dtype == np.bool_ and out.shape == (len(eyes_in), len(targets_in))
     kw["threads"] = 1
-    np.testing.assert_array_equal(out, _core.surfel_visibility(pts, nrm, eye, tgt, **kw))
+    np.testing.assert_array_equal(out, _core.surfel_visibility(pts, nrm, eyes_in, targets_in, **kw))
 
 
 # ------------------------------------------------------------------- voxel_downsample
@@ -1950,8 +1964,9 @@ def test_voxel_downsample(data):
     if not ok(out):
         assert plan.bad, "a valid call was refused"
         return
-    assert same
-    np.testing.assert_allclose(out, _reference_voxels(pts, float(voxel)), rtol=1e-12, atol=1e-15)
+    del same, pts  # any (N, 3) cloud is valid: compare with what was passed
+    passed = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    np.testing.assert_allclose(out, _reference_voxels(passed, float(voxel)), rtol=1e-12, atol=1e-15)
 
 
 @FUZZ
@@ -1963,15 +1978,7 @@ def test_depth_voxels(data):
     EXAMPLES_RUN["test_depth_voxels"] += 1
     names = ["depth", "camera", "cam2world", "min_range", "max_range", "voxel"]
     plan = Plan(data, names)
-    cam = data.draw(small_camera())
-    raw = np.asarray(
-        data.draw(
-            hnp.arrays(np.float32, (cam.height, cam.width), elements=st.floats(0.0, 2.0, width=32))
-        )
-    )
-    depth, depth_same = data.draw(maybe_array(raw, "depth" in plan))
-    camera = data.draw(camera_or_junk(cam, "camera" in plan))
-    pose, pose_valid = data.draw(pose_arg((0.0, 0.0, 0.0), 0.6, "cam2world" in plan))
+    cam, raw, depth, depth_same, camera, pose, pose_valid = _depth_view(data, plan)
     kw = {
         "min_range": data.draw(float_arg(st.floats(0.0, 0.5))) if "min_range" in plan else 0.1,
         "max_range": data.draw(float_arg(st.floats(0.0, 5.0))) if "max_range" in plan else 3.0,

@@ -5,7 +5,30 @@ use heapgrasp_core::clouds::{self, SeenParams};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 
-use crate::convert::{array_arg, camera_arg, check_tail, detached, float_arg, int_arg, pose_arg};
+use heapgrasp_core::{PinholeCamera, Pose};
+
+use crate::convert::{
+    array_arg, camera_arg, check_tail, detached, float_arg, int_arg, pose_arg, ArrayArg,
+};
+
+/// A depth view's arguments: the camera, the `(H, W)` float32 depth of its size and the
+/// rigid `cam2world`.
+fn depth_view<'py>(
+    depth: &Bound<'py, PyAny>,
+    camera: &Bound<'py, PyAny>,
+    cam2world: &Bound<'py, PyAny>,
+) -> PyResult<(PinholeCamera, ArrayArg<'py, f32>, Pose)> {
+    let cam = camera_arg(camera, "camera")?;
+    let d = array_arg::<f32>(depth, "depth", "float32", Some(2))?;
+    let want = [cam.height as usize, cam.width as usize];
+    check_tail(
+        "depth",
+        &d.shape,
+        &want,
+        &format!("({}, {})", want[0], want[1]),
+    )?;
+    Ok((cam, d, pose_arg(cam2world, "cam2world")?))
+}
 
 /// Whether each world point is shown empty by a depth view.
 ///
@@ -33,16 +56,7 @@ pub fn seen_empty<'py>(
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
     let pts = array_arg::<f64>(points, "points", "float64", Some(2))?;
     check_tail("points", &pts.shape, &[3], "(N, 3)")?;
-    let cam = camera_arg(camera, "camera")?;
-    let d = array_arg::<f32>(depth, "depth", "float32", Some(2))?;
-    let want = [cam.height as usize, cam.width as usize];
-    check_tail(
-        "depth",
-        &d.shape,
-        &want,
-        &format!("({}, {})", want[0], want[1]),
-    )?;
-    let pose = pose_arg(cam2world, "cam2world")?;
+    let (cam, d, pose) = depth_view(depth, camera, cam2world)?;
     let params = SeenParams {
         min_range: float_arg(min_range, "min_range")?,
         max_range: float_arg(max_range, "max_range")?,
@@ -95,16 +109,7 @@ pub fn depth_voxels<'py>(
     max_range: &Bound<'py, PyAny>,
     voxel: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let cam = camera_arg(camera, "camera")?;
-    let d = array_arg::<f32>(depth, "depth", "float32", Some(2))?;
-    let want = [cam.height as usize, cam.width as usize];
-    check_tail(
-        "depth",
-        &d.shape,
-        &want,
-        &format!("({}, {})", want[0], want[1]),
-    )?;
-    let pose = pose_arg(cam2world, "cam2world")?;
+    let (cam, d, pose) = depth_view(depth, camera, cam2world)?;
     let (lo, hi) = (
         float_arg(min_range, "min_range")?,
         float_arg(max_range, "max_range")?,

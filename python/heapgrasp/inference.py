@@ -76,6 +76,7 @@ __all__ = [
     "Kind",
     "OnnxNetwork",
     "content_digest",
+    "require_onnx",
     "resolve_device",
     "seal",
     "shipped_weights",
@@ -138,6 +139,18 @@ def write_atomically(data: bytes, path: str | os.PathLike[str]) -> Path:
     finally:
         tmp.unlink(missing_ok=True)
     return out
+
+
+def require_onnx(purpose: str) -> Any:
+    """The ``onnx`` package (building network files), or an ImportError saying
+    ``purpose`` needs it and how to install it."""
+    try:
+        import onnx
+    except ImportError as exc:  # pragma: no cover - depends on the install
+        raise ImportError(
+            f"{purpose} needs the onnx package: pip install 'heapgrasp[train]'"
+        ) from exc
+    return onnx
 
 
 def shipped_weights(kind: Kind) -> Path | None:

@@ -16,6 +16,7 @@ use nalgebra::Point3;
 use crate::camera::{PinholeCamera, Pose};
 use crate::error::{Error, Result};
 use crate::parallel;
+use crate::synthesis::check_flat_points;
 
 /// Points per thread below which a call stays on one thread.
 const MIN_POINTS_PER_THREAD: usize = 20_000;
@@ -80,19 +81,7 @@ pub fn seen_empty(
     params: &SeenParams,
     threads: usize,
 ) -> Result<Vec<bool>> {
-    if !points.len().is_multiple_of(3) {
-        return Err(Error::Shape {
-            name: "points".into(),
-            expected: "(N, 3)".into(),
-            got: format!("{} values", points.len()),
-        });
-    }
-    if let Some(k) = points.iter().position(|v| !v.is_finite()) {
-        return Err(Error::NonFinite {
-            name: "points".into(),
-            position: format!("[{}, {}]", k / 3, k % 3),
-        });
-    }
+    check_flat_points("points", points)?;
     camera.check_image("depth", depth.len())?;
     params.validate()?;
     let world2cam = cam2world.inverse();
@@ -124,6 +113,9 @@ pub fn seen_empty(
     Ok(chunks.concat())
 }
 
+/// The largest cell index magnitude voxel down-sampling accepts (2⁶²).
+const LARGEST_CELL: f64 = 4_611_686_018_427_387_904.0;
+
 /// Centroids of points per cell of a lattice anchored at the origin, summed in the order
 /// the points come.
 struct Voxels {
@@ -149,8 +141,18 @@ impl Voxels {
         })
     }
 
-    fn add(&mut self, p: [f64; 3]) {
-        let key = p.map(|v| (v / self.voxel).floor() as i64);
+    /// Adds a point; an error when its cell's index does not fit an `i64` comfortably
+    /// (|p / voxel| ≥ 2⁶²: coordinates far beyond any scene).
+    fn add(&mut self, p: [f64; 3]) -> Result<()> {
+        let cell = p.map(|v| (v / self.voxel).floor());
+        if cell.iter().any(|c| !(c.abs() < LARGEST_CELL)) {
+            return Err(Error::value(
+                "points",
+                format!("{p:?}"),
+                format!("too far from the origin for {} m voxels", self.voxel),
+            ));
+        }
+        let key = cell.map(|c| c as i64);
         let slot = match self.last {
             Some((k, slot)) if k == key => slot,
             _ => {
@@ -169,6 +171,7 @@ impl Voxels {
         sum[1] += p[1];
         sum[2] += p[2];
         sum[3] += 1.0;
+        Ok(())
     }
 
     /// The centroids, cells in lexicographic order of their index.
@@ -190,21 +193,9 @@ impl Voxels {
 /// cells in lexicographic order of their index `⌊p / voxel⌋`.
 pub fn voxel_downsample(points: &[f64], voxel: f64) -> Result<Vec<[f64; 3]>> {
     let mut voxels = Voxels::new(voxel)?;
-    if !points.len().is_multiple_of(3) {
-        return Err(Error::Shape {
-            name: "points".into(),
-            expected: "(N, 3)".into(),
-            got: format!("{} values", points.len()),
-        });
-    }
-    if let Some(k) = points.iter().position(|v| !v.is_finite()) {
-        return Err(Error::NonFinite {
-            name: "points".into(),
-            position: format!("[{}, {}]", k / 3, k % 3),
-        });
-    }
+    check_flat_points("points", points)?;
     for p in points.chunks_exact(3) {
-        voxels.add([p[0], p[1], p[2]]);
+        voxels.add([p[0], p[1], p[2]])?;
     }
     Ok(voxels.centroids())
 }
@@ -250,7 +241,7 @@ pub fn depth_voxels(
             z,
         );
         let w = cam2world.transform_point(&c);
-        voxels.add([w.x, w.y, w.z]);
+        voxels.add([w.x, w.y, w.z])?;
     }
     Ok(voxels.centroids())
 }
@@ -303,6 +294,7 @@ mod tests {
         assert!(voxel_downsample(&points, 0.0).is_err());
         assert!(voxel_downsample(&points[..4], 0.01).is_err());
         assert!(voxel_downsample(&[f64::NAN, 0.0, 0.0], 0.01).is_err());
+        assert!(voxel_downsample(&[1e300, 0.0, 0.0], 0.01).is_err());
     }
 
     fn params() -> SeenParams {

@@ -43,6 +43,12 @@ pub type Point = [f64; 3];
 
 /// Checks a flat `(N, 3)` buffer of finite coordinates and returns its points.
 pub fn points_from_flat(name: &str, flat: &[f64]) -> Result<Vec<Point>> {
+    check_flat_points(name, flat)?;
+    Ok(flat.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect())
+}
+
+/// Checks that `flat` is an `(N, 3)` buffer of finite coordinates (errors name `name`).
+pub fn check_flat_points(name: &str, flat: &[f64]) -> Result<()> {
     if !flat.len().is_multiple_of(3) {
         return Err(Error::Shape {
             name: name.into(),
@@ -56,7 +62,7 @@ pub fn points_from_flat(name: &str, flat: &[f64]) -> Result<Vec<Point>> {
             position: format!("[{}, {}]", k / 3, k % 3),
         });
     }
-    Ok(flat.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect())
+    Ok(())
 }
 
 /// Point indices in a hash grid of cubic cells.

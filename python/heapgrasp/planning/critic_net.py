@@ -40,6 +40,7 @@ from heapgrasp.inference import (
     META_KIND,
     META_PROVENANCE,
     META_VERSION,
+    require_onnx,
     seal,
     write_atomically,
 )
@@ -100,17 +101,6 @@ class ConvCritic:
         return {"c1": len(self.conv1_b), "c2": len(self.conv2_b), "hidden": len(self.fc1_b)}
 
 
-def _onnx() -> Any:
-    try:
-        import onnx
-    except ImportError as exc:  # pragma: no cover - depends on the install
-        raise ImportError(
-            "building a grasp critic (training, conversion) needs the onnx package: "
-            "pip install 'heapgrasp[train]'"
-        ) from exc
-    return onnx
-
-
 def critic_onnx(
     mean: npt.ArrayLike,
     scale: npt.ArrayLike,
@@ -129,7 +119,7 @@ def critic_onnx(
     ``hparams`` (``model``, ``threshold``, ``candidate_epsilon``, ...) and
     ``provenance`` are stored as the file's metadata with ``crop_shape`` and
     ``n_features`` added. Needs the ``onnx`` package."""
-    onnx = _onnx()
+    onnx = require_onnx("building a grasp critic (training, conversion)")
     from onnx import TensorProto, helper, numpy_helper
 
     m = np.asarray(mean, dtype=np.float64)
@@ -266,7 +256,7 @@ def with_metadata(
     model_bytes: bytes, hparams: Mapping[str, Any], provenance: Mapping[str, Any]
 ) -> bytes:
     """The serialised critic ``model_bytes`` with its metadata replaced."""
-    onnx = _onnx()
+    onnx = require_onnx("building a grasp critic (training, conversion)")
     proto = onnx.load_model_from_string(model_bytes)
     _set_metadata(proto, hparams, provenance)
     return seal(proto.SerializeToString())

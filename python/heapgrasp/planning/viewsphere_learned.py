@@ -45,6 +45,7 @@ from heapgrasp.inference import (
     META_VERSION,
     SHIPPED_VIEWSPHERE_POLICIES,
     OnnxNetwork,
+    require_onnx,
     seal,
     weights_dir,
 )
@@ -123,17 +124,6 @@ def state_features(
     return out
 
 
-def _onnx() -> Any:
-    try:
-        import onnx
-    except ImportError as exc:  # pragma: no cover - depends on the install
-        raise ImportError(
-            "building a viewsphere policy file needs the onnx package: "
-            "pip install 'heapgrasp[train]'"
-        ) from exc
-    return onnx
-
-
 def policy_onnx(
     layers: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
     *,
@@ -143,7 +133,7 @@ def policy_onnx(
     """A policy file's bytes (module doc): dense ``layers`` ``(W (out, in), b (out,))``
     with ReLU between them, from ``state`` ``(B, W₀.shape[1])`` to ``scores`` ``(B, 8)``.
     ``hparams`` (``model``, ...) get ``n_features`` and ``grid`` added. Needs ``onnx``."""
-    onnx = _onnx()
+    onnx = require_onnx("building a viewsphere policy file")
     from onnx import TensorProto, helper, numpy_helper
 
     if not layers:

@@ -155,6 +155,19 @@ class Episode:
     one step is the sphere's ``step``)."""
 
 
+def _checked(
+    max_steps: int, sphere: DiscreteViewsphere | None, start: SpherePose
+) -> DiscreteViewsphere:
+    """The episode's sphere (the default one when None); ValueError on a bad
+    ``max_steps`` or a start off the sphere."""
+    if not (isinstance(max_steps, int) and max_steps >= 0):
+        raise ValueError(f"max_steps must be an int >= 0, got {max_steps!r}")
+    sphere = DiscreteViewsphere() if sphere is None else sphere
+    if not sphere.valid(start):
+        raise ValueError(f"start {start} is not a valid pose of the viewsphere")
+    return sphere
+
+
 def run_episode(
     policy: ViewspherePolicy,
     grasp_found: GraspFound,
@@ -168,11 +181,7 @@ def run_episode(
     """Runs ``policy`` from ``start`` until ``grasp_found`` holds for the poses visited
     or ``max_steps`` moves were made; ``observe`` gives the policy the fused state of
     the views (:meth:`ViewState.fused`)."""
-    if not (isinstance(max_steps, int) and max_steps >= 0):
-        raise ValueError(f"max_steps must be an int >= 0, got {max_steps!r}")
-    sphere = DiscreteViewsphere() if sphere is None else sphere
-    if not sphere.valid(start):
-        raise ValueError(f"start {start} is not a valid pose of the viewsphere")
+    sphere = _checked(max_steps, sphere, start)
     policy.reset(seed)
     poses = [start]
     directions: list[int] = []
@@ -204,11 +213,7 @@ def run_viewpoint_episode(
     viewpoints flown to (at most ``max_steps``), ``travelled`` the arcs between them,
     ``directions`` is empty. A viewpoint already visited or off the sphere is a
     ValueError naming it."""
-    if not (isinstance(max_steps, int) and max_steps >= 0):
-        raise ValueError(f"max_steps must be an int >= 0, got {max_steps!r}")
-    sphere = DiscreteViewsphere() if sphere is None else sphere
-    if not sphere.valid(start):
-        raise ValueError(f"start {start} is not a valid pose of the viewsphere")
+    sphere = _checked(max_steps, sphere, start)
     policy.reset(seed)
     poses = [start]
     travelled = 0.0
@@ -238,13 +243,9 @@ def breadth_first(
 
     ``max_sets`` bounds the distinct sets asked about (the levels grow about sevenfold
     each): past it the search stops, not found, with ``complete`` False."""
-    if not (isinstance(max_steps, int) and max_steps >= 0):
-        raise ValueError(f"max_steps must be an int >= 0, got {max_steps!r}")
     if max_sets is not None and not (isinstance(max_sets, int) and max_sets >= 1):
         raise ValueError(f"max_sets must be an int >= 1 or None, got {max_sets!r}")
-    sphere = DiscreteViewsphere() if sphere is None else sphere
-    if not sphere.valid(start):
-        raise ValueError(f"start {start} is not a valid pose of the viewsphere")
+    sphere = _checked(max_steps, sphere, start)
     answers: dict[frozenset[PoseKey], bool] = {}
 
     class _Budget(Exception):
