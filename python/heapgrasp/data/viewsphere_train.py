@@ -404,11 +404,13 @@ def _write_metrics(
 ) -> None:
     """``metrics.json`` and ``metrics.png`` (the DQN's return per episode, smoothed; a
     linear policy's label counts)."""
-    from heapgrasp.plots import _pyplot
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     (out / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(5, 3))
+    fig = Figure(figsize=(5, 3))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
     if history:
         r = np.array([h["return"] for h in history], dtype=np.float64)
         k = min(50, len(r))
@@ -427,4 +429,3 @@ def _write_metrics(
         )
     fig.tight_layout()
     fig.savefig(out / "metrics.png", dpi=110)
-    plt.close(fig)
