@@ -94,6 +94,10 @@ POLICIES = (
     "heapgrasp-oracle",
     "bfs",
 )
+#: Policies whose steps are viewpoints flown to, not 20° moves: their success per
+#: step is not comparable with the others' and they stay out of Fig. 11 (Table 1
+#: compares their path in steps).
+VIEWPOINT_POLICIES = ("information-gain",)
 #: The learned policies: each runs a policy file (shipped, or ``--weights MODEL=FILE``).
 LEARNED = ("pca-lr", "pca-lda", "dqn")
 #: Random's share of BFS's success at step 2: at most the first is hard, at most the
@@ -396,13 +400,14 @@ def bfs_ratios(
 ) -> dict[str, dict[str, dict[str, float | None]]]:
     """Fig. 11's numbers: per policy, class (easy, medium, hard, all) and step, the mean
     over the class's objects of the policy's success over BFS's (objects where BFS
-    found nothing by that step are left out)."""
+    found nothing by that step are left out; policies that fly between viewpoints,
+    :data:`VIEWPOINT_POLICIES`, too)."""
     if "bfs" not in policies:
         return {}
     bfs = policies["bfs"]["objects"]
     out: dict[str, dict[str, dict[str, float | None]]] = {}
     for name, pol in policies.items():
-        if name == "bfs":
+        if name == "bfs" or name in VIEWPOINT_POLICIES:
             continue
         out[name] = {}
         for cls in ("easy", "medium", "hard", "all"):
@@ -485,7 +490,9 @@ def markdown_table(results: Mapping[str, Any]) -> str:
         "",
         "Success: the fraction of poses where a grasp was found within the step; "
         "mean steps count a pose without a grasp as "
-        f"{steps}; executed: the found grasps the simulated hand lifted.",
+        f"{steps}; executed: the found grasps the simulated hand lifted. A policy marked "
+        "(viewpoints) counts viewpoints flown to, not 20° moves (its path in moves: "
+        "Table 1).",
         "",
         "| object | class | policy | "
         + " | ".join(f"{s}" for s in range(steps + 1))
@@ -500,7 +507,7 @@ def markdown_table(results: Mapping[str, Any]) -> str:
             exe = o["executed_success"]
             extra = f" ({o['incomplete']} incomplete)" if o["incomplete"] else ""
             lines.append(
-                f"| {obj} | {cls['class'] or '–'} | {name}{extra} | "
+                f"| {obj} | {cls['class'] or '–'} | {_label(name)}{extra} | "
                 + " | ".join(f"{100 * v:.0f}" for v in o["success_at_step"])
                 + f" | {o['mean_steps']:.2f} | "
                 + ("–" if exe is None else f"{100 * exe:.0f} % of {o['executed']}")
@@ -513,7 +520,7 @@ def markdown_table(results: Mapping[str, Any]) -> str:
             curve = np.mean([o["success_at_step"] for o in objs], axis=0)
             ms = np.mean([o["mean_steps"] for o in objs])
             means.append(
-                f"| mean | | {name} | "
+                f"| mean | | {_label(name)} | "
                 + " | ".join(f"{100 * v:.0f}" for v in curve)
                 + f" | {ms:.2f} | | |"
             )
@@ -577,6 +584,11 @@ def markdown_table(results: Mapping[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _label(name: str) -> str:
+    """A policy's name in tables and legends (steps in viewpoints said so)."""
+    return f"{name} (viewpoints)" if name in VIEWPOINT_POLICIES else name
+
+
 def _pct(v: float | None) -> str:
     return "–" if v is None else f"{v:.0f}"
 
@@ -597,7 +609,14 @@ def figures(results: Mapping[str, Any], out: Path) -> None:
         for name, pol in results["policies"].items():
             o = pol["objects"].get(obj)
             if o is not None:
-                ax.plot(range(steps + 1), o["success_at_step"], marker="o", ms=3, label=name)
+                ax.plot(
+                    range(steps + 1),
+                    o["success_at_step"],
+                    marker="o",
+                    ms=3,
+                    ls=":" if name in VIEWPOINT_POLICIES else "-",
+                    label=_label(name),
+                )
         cls = results["classes"][obj]["class"]
         ax.set_title(f"{obj}" + (f" ({cls})" if cls else ""), fontsize=8)
         ax.set_ylim(0, 1.02)
