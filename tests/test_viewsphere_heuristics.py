@@ -14,7 +14,7 @@ from heapgrasp.planning.viewsphere_heuristics import (
     Heuristic2D,
     Heuristic3D,
     InformationGain,
-    ViewScorer,
+    ViewsphereScorer,
     information_gain_viewpoints,
 )
 from heapgrasp.planning.viewsphere_policies import (
@@ -24,7 +24,7 @@ from heapgrasp.planning.viewsphere_policies import (
 )
 
 SPHERE = DiscreteViewsphere()
-SCORER = ViewScorer(SPHERE, SEED001_CAMERA)
+SCORER = ViewsphereScorer(SPHERE, SEED001_CAMERA)
 #: The camera west of the object (azimuth π), 40° from above.
 WEST = SpherePose(math.pi, math.radians(40.0))
 

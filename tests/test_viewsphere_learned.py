@@ -17,7 +17,7 @@ from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.geometry.viewsphere import DIRECTIONS, DiscreteViewsphere, SpherePose
 from heapgrasp.inference import OnnxNetwork
 from heapgrasp.loop.viewsphere import SEED001_CAMERA
-from heapgrasp.planning.viewsphere_heuristics import ViewScorer
+from heapgrasp.planning.viewsphere_heuristics import ViewsphereScorer
 from heapgrasp.planning.viewsphere_learned import (
     N_FEATURES,
     LearnedPolicy,
@@ -27,7 +27,7 @@ from heapgrasp.planning.viewsphere_learned import (
 from heapgrasp.planning.viewsphere_policies import ViewState
 
 SPHERE = DiscreteViewsphere()
-SCORER = ViewScorer(SPHERE, SEED001_CAMERA)
+SCORER = ViewsphereScorer(SPHERE, SEED001_CAMERA)
 
 
 def _turn(points: np.ndarray, angle: float) -> np.ndarray:

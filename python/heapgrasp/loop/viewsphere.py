@@ -54,7 +54,7 @@ from heapgrasp.planning.synthesis import (
     patched_pairs,
     rank_grasps,
 )
-from heapgrasp.planning.viewsphere_heuristics import ViewScorer
+from heapgrasp.planning.viewsphere_heuristics import ViewsphereScorer
 from heapgrasp.planning.viewsphere_policies import PoseKey, pose_key
 
 __all__ = ["SEED001_CAMERA", "FoundGrasp", "ViewsphereConfig", "ViewsphereGrasps"]
@@ -167,9 +167,9 @@ class ViewsphereConfig:
             centre=(float(centre[0]), float(centre[1]), float(centre[2])),
         )
 
-    def view_scorer(self, sphere: DiscreteViewsphere, camera: CameraSpec) -> ViewScorer:
+    def view_scorer(self, sphere: DiscreteViewsphere, camera: CameraSpec) -> ViewsphereScorer:
         """What the heuristic and learned policies score views with, on ``sphere``."""
-        return ViewScorer(
+        return ViewsphereScorer(
             sphere,
             camera,
             min_range=self.min_range,

@@ -41,7 +41,7 @@ from heapgrasp.geometry.motion import ViewSphere
 from heapgrasp.geometry.viewsphere import DiscreteViewsphere, SpherePose
 from heapgrasp.planning.view_network import NetworkViewScorer
 from heapgrasp.planning.views import ViewContext
-from heapgrasp.planning.viewsphere_heuristics import ViewScorer
+from heapgrasp.planning.viewsphere_heuristics import ViewsphereScorer
 from heapgrasp.planning.viewsphere_policies import ViewState, pose_key
 
 __all__ = ["HeapgraspViewPolicy"]
@@ -84,7 +84,7 @@ class HeapgraspViewPolicy:
         self.name = self.name or f"heapgrasp-{'oracle' if self.scorer == 'oracle' else 'net'}"
         c = np.asarray(self.sphere.centre)
         self._origin = (c[0] - self.cube_size / 2, c[1] - self.cube_size / 2, c[2])
-        self._views = ViewScorer(self.sphere, self.camera)
+        self._views = ViewsphereScorer(self.sphere, self.camera)
         self._core_camera = self.camera.core()
         self.reset(0)
 

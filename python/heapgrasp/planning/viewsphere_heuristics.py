@@ -53,7 +53,7 @@ __all__ = [
     "Heuristic2D",
     "Heuristic3D",
     "InformationGain",
-    "ViewScorer",
+    "ViewsphereScorer",
     "information_gain_viewpoints",
 ]
 
@@ -61,7 +61,7 @@ F64 = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class ViewScorer:
+class ViewsphereScorer:
     """What the heuristics share: the viewsphere, the camera, the sensor's range, the
     voxel (the fused points' spacing: the surfels' half width), the points per normal
     estimate, and the box where the object can be (± ``half_xy`` about the sphere's
@@ -149,7 +149,7 @@ def _best(scored: Sequence[tuple[int, float]]) -> int:
 class Heuristic2D:
     """Seed 001's Algorithm 1 (module doc)."""
 
-    scorer: ViewScorer
+    scorer: ViewsphereScorer
     closing_px: int = 19
     name: str = "heuristic-2d"
 
@@ -196,7 +196,7 @@ class Heuristic2D:
 class Heuristic3D:
     """Seed 001's Algorithm 2 (module doc): ``half_length`` is the gripper's opening."""
 
-    scorer: ViewScorer
+    scorer: ViewsphereScorer
     half_length: float = 0.08
     region_radius: float = 0.015
     max_points: int = 1000
@@ -266,7 +266,7 @@ class InformationGain:
     """The information gain comparison (module doc): picks the unvisited viewpoint of
     ``viewpoints`` that sees the most unexplored points."""
 
-    scorer: ViewScorer
+    scorer: ViewsphereScorer
     viewpoints: tuple[SpherePose, ...] = field(default_factory=information_gain_viewpoints)
     name: str = "information-gain"
 

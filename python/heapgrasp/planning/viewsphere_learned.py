@@ -9,7 +9,7 @@ the camera: its rows run from the far side toward the camera's side, its columns
 west to east (the directions N/E/S/W are the camera's, so the grid is too). An object
 cell holds the highest point above the table there (m); an unexplored cell holds the
 share of the unexplored points over the square (in the object's box,
-:meth:`~heapgrasp.planning.viewsphere_heuristics.ViewScorer.targets`) that fall in it.
+:meth:`~heapgrasp.planning.viewsphere_heuristics.ViewsphereScorer.targets`) that fall in it.
 Without object points the grids are zero.
 
 **A policy file** is an ONNX model of kind ``viewsphere-policy``
@@ -49,7 +49,7 @@ from heapgrasp.inference import (
     seal,
     weights_dir,
 )
-from heapgrasp.planning.viewsphere_heuristics import ViewScorer
+from heapgrasp.planning.viewsphere_heuristics import ViewsphereScorer
 from heapgrasp.planning.viewsphere_policies import ViewState
 
 __all__ = [
@@ -205,7 +205,7 @@ class LearnedPolicy:
     """A learned policy (module doc) run from its file."""
 
     network: OnnxNetwork
-    scorer: ViewScorer
+    scorer: ViewsphereScorer
     name: str = "learned"
 
     def __post_init__(self) -> None:
@@ -221,7 +221,7 @@ class LearnedPolicy:
 
     @classmethod
     def from_file(
-        cls, path: str | Path, scorer: ViewScorer, name: str | None = None
+        cls, path: str | Path, scorer: ViewsphereScorer, name: str | None = None
     ) -> LearnedPolicy:
         """The policy in ``path`` (FileNotFoundError or WeightsError naming it)."""
         network = OnnxNetwork(path, kind="viewsphere-policy", threads=1)
