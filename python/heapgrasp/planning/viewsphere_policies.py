@@ -168,6 +168,32 @@ def _checked(
     return sphere
 
 
+def _episode(
+    grasp_found: GraspFound,
+    step: Callable[[ViewState], tuple[int | None, SpherePose]],
+    sphere: DiscreteViewsphere,
+    start: SpherePose,
+    max_steps: int,
+    observe: Callable[[tuple[SpherePose, ...]], Fused] | None,
+) -> Episode:
+    """The episode loop: ``step(state)`` gives the direction taken (None for a flight)
+    and the next pose, until ``grasp_found`` holds or ``max_steps`` steps were made."""
+    poses = [start]
+    directions: list[int] = []
+    travelled = 0.0
+    while True:
+        steps = len(poses) - 1
+        if grasp_found(frozenset(pose_key(p) for p in poses)):
+            return Episode(tuple(poses), tuple(directions), steps, True, True, travelled)
+        if steps == max_steps:
+            return Episode(tuple(poses), tuple(directions), max_steps, False, True, travelled)
+        taken, nxt = step(ViewState(poses[-1], tuple(poses), steps, observe))
+        travelled += sphere.arc(poses[-1], nxt)
+        if taken is not None:
+            directions.append(taken)
+        poses.append(nxt)
+
+
 def run_episode(
     policy: ViewspherePolicy,
     grasp_found: GraspFound,
@@ -183,20 +209,11 @@ def run_episode(
     the views (:meth:`ViewState.fused`)."""
     sphere = _checked(max_steps, sphere, start)
     policy.reset(seed)
-    poses = [start]
-    directions: list[int] = []
-    travelled = 0.0
-    while True:
-        if grasp_found(frozenset(pose_key(p) for p in poses)):
-            return Episode(tuple(poses), tuple(directions), len(directions), True, True, travelled)
-        if len(directions) == max_steps:
-            return Episode(tuple(poses), tuple(directions), max_steps, False, True, travelled)
-        state = ViewState(poses[-1], tuple(poses), len(directions), observe)
-        wanted = policy.choose(state)
-        taken, nxt = sphere.move(poses[-1], wanted)
-        travelled += sphere.arc(poses[-1], nxt)
-        directions.append(taken)
-        poses.append(nxt)
+
+    def step(state: ViewState) -> tuple[int | None, SpherePose]:
+        return sphere.move(state.pose, policy.choose(state))
+
+    return _episode(grasp_found, step, sphere, start, max_steps, observe)
 
 
 def run_viewpoint_episode(
@@ -215,18 +232,14 @@ def run_viewpoint_episode(
     ValueError naming it."""
     sphere = _checked(max_steps, sphere, start)
     policy.reset(seed)
-    poses = [start]
-    travelled = 0.0
-    while True:
-        if grasp_found(frozenset(pose_key(p) for p in poses)):
-            return Episode(tuple(poses), (), len(poses) - 1, True, True, travelled)
-        if len(poses) - 1 == max_steps:
-            return Episode(tuple(poses), (), max_steps, False, True, travelled)
-        nxt = policy.choose_view(ViewState(poses[-1], tuple(poses), len(poses) - 1, observe))
-        if not sphere.valid(nxt) or pose_key(nxt) in {pose_key(p) for p in poses}:
+
+    def step(state: ViewState) -> tuple[int | None, SpherePose]:
+        nxt = policy.choose_view(state)
+        if not sphere.valid(nxt) or pose_key(nxt) in {pose_key(p) for p in state.visited}:
             raise ValueError(f"{policy.name} chose {nxt}: visited or not on the viewsphere")
-        travelled += sphere.arc(poses[-1], nxt)
-        poses.append(nxt)
+        return None, nxt
+
+    return _episode(grasp_found, step, sphere, start, max_steps, observe)
 
 
 def breadth_first(
