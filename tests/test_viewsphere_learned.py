@@ -102,8 +102,6 @@ def test_bad_policy_layers_and_files_are_refused(tmp_path: Path):
 
 
 def test_the_folded_layer_is_the_pipeline():
-    sklearn = pytest.importorskip("sklearn")
-    del sklearn
     from sklearn.decomposition import PCA
     from sklearn.linear_model import LogisticRegression
     from sklearn.preprocessing import StandardScaler
@@ -151,7 +149,6 @@ def _fake_sample(config: Any, index: int) -> dict[str, Any] | None:
 
 
 def test_paths_datasets_train_pca_policies(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
-    pytest.importorskip("sklearn")
     monkeypatch.setattr(vp, "scene_sample", _fake_sample)
     train, val = tmp_path / "train", tmp_path / "val"
     manifest = generate(vp.ViewspherePathsConfig(scenes=60, shard_size=25), train, progress=False)
@@ -194,7 +191,6 @@ def test_a_real_scene_is_labelled_with_a_shortest_first_direction():
 
 
 def test_the_dqn_trains_and_writes_a_policy_file(tmp_path: Path):
-    pytest.importorskip("torch")
     config = DqnConfig(episodes=3, batch=2, yaws=1, objects=("prism_6x6x6",))
     metrics = train_dqn(config, tmp_path, progress=False)
     assert metrics["episodes"] == 3 and len(metrics["history"]) == 3
