@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from heapgrasp.geometry.checks import finite, positive
 
-__all__ = ["GRASP_DEPTH_RANGE", "PANDA_HAND", "GripperGeometry"]
+__all__ = ["GRASP_DEPTH_RANGE", "PANDA_HAND", "ROBOTIQ_2F140", "GripperGeometry"]
 
 #: VGN's grasp depths, in finger depths: how far in front of the surface point a grasp's
 #: palm face is placed (``[−ε, 1 + ε]``, ε = 0.1), for its data and its detection.
@@ -126,3 +126,43 @@ class GripperGeometry:
 
 #: The Franka Panda hand (VGN's gripper; the simulator's).
 PANDA_HAND = GripperGeometry()
+
+#: The Robotiq 2F-140 adaptive gripper with its standard fingers, fingers open, in the
+#: same TCP convention (z the approach, the fingers closing along y, x across them): the
+#: TCP is the centre of the fingertip pads.
+ROBOTIQ_2F140 = GripperGeometry(
+    finger_width=0.030,
+    finger_tip=0.0325,
+    finger_base=-0.125,
+    finger_split=-0.046,
+    tip_thickness=0.018,
+    base_thickness=0.036,
+    palm_front=-0.115,
+    palm_split=-0.177,
+    palm_back=-0.189,
+    palm_front_half=(0.0375, 0.045),
+    palm_back_half=(0.0375, 0.0375),
+    max_opening=0.14,
+)
+"""The Robotiq 2F-140 (:mod:`heapgrasp.robot.robotiq` drives it), fingers fully open.
+
+Sources: Robotiq's 2F-140 specification (140 mm stroke), Robotiq's knowledge-base note
+on the 2F-85/2F-140's vertical finger motion (the fingertips move along the approach as
+they close), and ROS-Industrial's ``robotiq_2f_140_gripper_visualization`` URDF
+(``robotiq_arg2f_140_model_macro.xacro``): its finger pads are 27 x 65 x 7.5 mm boxes
+(30 x 70 x 7.5 mm for collision), and its joint origins, chained with the fingers open,
+put the pads' centre 177 mm from the housing's base, the pads between 144.5 and 209.5 mm,
+the knuckle pivots 55-61 mm from the base at y = ±30.6 mm, and the outer linkage at most
+95 mm from the axis (at 131 mm).
+
+Exact: ``max_opening`` (the stroke) and the pad length (``finger_tip`` is half of it,
+the TCP being the pads' centre). From the URDF's kinematics (about ±3 mm):
+``finger_split`` (the distal joint), ``finger_base``, ``palm_front`` (the housing's face
+near the knuckles) and ``palm_split`` (the housing's base). Approximate (about ±5 mm,
+no drawing at hand): ``finger_width`` (the pad's collision box), ``tip_thickness`` (the
+7.5 mm pad and the distal phalanx), ``base_thickness`` (the open linkage reaching
+outward of the pad plane), the housing's half extents ``palm_front_half``, and the
+coupling to the flange (``palm_back``, ``palm_back_half``: a 75 mm disc, 12 mm thick).
+The model is of the open hand: closing fully brings the fingertips about 24 mm further
+out along z (URDF), which no static box model shows.
+"""
