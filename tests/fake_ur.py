@@ -39,6 +39,8 @@ class FakeController:
     log: list[tuple[str, tuple[Any, ...]]] = field(default_factory=list)
     protective_after: int | None = None
     """Motion commands after which the controller enters a protective stop."""
+    protective_on: tuple[str, int] | None = None
+    """``(command, n)``: a protective stop at the n-th command of that name."""
     drop_after: int | None = None
     """Calls after which every call raises RuntimeError (the connection is gone)."""
     contact_z: float | None = None
@@ -54,6 +56,13 @@ class FakeController:
     _async_speed: float = 0.0
 
     # ------------------------------------------------------------------ helpers
+    def connect(self) -> FakeController:
+        """A new connection (after a disconnect)."""
+        self.connected = True
+        self._calls = 0
+        self.drop_after = None
+        return self
+
     def call(self, name: str, *args: Any) -> None:
         self._calls += 1
         if self.drop_after is not None and self._calls > self.drop_after:
@@ -61,6 +70,9 @@ class FakeController:
         if not self.connected:
             raise RuntimeError(f"RTDE: not connected ({name})")
         self.log.append((name, args))
+        if self.protective_on is not None and self.protective_on[0] == name:
+            if self.names().count(name) >= self.protective_on[1]:
+                self.protective = True
 
     def motion(self) -> bool:
         self._motions += 1

@@ -74,7 +74,7 @@ def test_calibration_and_method_are_kept() -> None:
 
 
 def test_the_box_and_the_caps() -> None:
-    box = Workspace((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
+    box = Workspace((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (0.5, 0.5, 0.5))
     check_inside(box, [[0.5, 0.5, 0.5], [1.0, 1.0, 1.0]], "the TCP")
     with pytest.raises(SafetyError, match=r"sample 1 of 2"):
         check_inside(box, [[0.5, 0.5, 0.5], [1.0, 1.2, 1.0]], "the TCP")

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from heapgrasp.loop.metrics import Phase
-from heapgrasp.robot.grasping import Grasp, GraspOutcome, execute_grasp, place
+from heapgrasp.robot.grasping import BIN_POSE, Grasp, GraspOutcome, execute_grasp, place
 from heapgrasp.robot.interfaces import Contact, Robot, SceneTruth
 
 __all__ = ["PlanResult", "StopReason", "run_clutter_removal", "stop_reason"]
@@ -82,12 +82,14 @@ def run_clutter_removal(
     truth: SceneTruth | None = None,
     max_attempts: int = 50,
     on_outcome: Callable[[Grasp, GraspOutcome], None] | None = None,
+    bin_pose: np.ndarray = BIN_POSE,
 ) -> tuple[list[Phase], StopReason]:
     """Runs the protocol with a pick planner (called once per phase) and returns the
     phases and why it stopped.
 
     ``on_outcome``, when given, is told every executed grasp and how it ended (before
     the next phase is planned), e.g. :meth:`heapgrasp.loop.phase.Pipeline.record_outcome`.
+    ``bin_pose`` is the TCP pose over the bin where a held object is released.
     """
     phases: list[Phase] = []
     consecutive = 0
@@ -124,7 +126,7 @@ def run_clutter_removal(
         category = None if truth is None else truth.category(target)
         motion = planned.motion_time + result.duration
         if result.outcome == GraspOutcome.SUCCESS and (held is not None or truth is None):
-            motion += place(robot, released=_releaser(truth, held))
+            motion += place(robot, bin_pose, released=_releaser(truth, held))
             consecutive = 0
         else:
             consecutive += 1

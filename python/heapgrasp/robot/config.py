@@ -103,6 +103,9 @@ class ArmSettings:
     """Height above the table (m, world z) at which the TCP travels to a pre-grasp pose."""
     settle: float = 0.1
     """Time (s) the arm rests before a still frame is taken."""
+    max_slowdown: float = 6.0
+    """A camera path is slowed until the TCP keeps ``[limits]`` (only its timing
+    changes); a path that would need to go more than this many times slower is refused."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.host, str):
@@ -112,8 +115,12 @@ class ArmSettings:
             if len(v) != n or not all(isinstance(x, int | float) and math.isfinite(x) for x in v):
                 raise RobotConfigError(f"[arm] {name} must be {n} finite numbers, got {list(v)}")
         _check_positive(
-            "arm", self, ("servo_rate", "lookahead", "gain", "contact_force", "travel_height")
+            "arm",
+            self,
+            ("servo_rate", "lookahead", "gain", "contact_force", "travel_height", "max_slowdown"),
         )
+        if self.max_slowdown < 1:
+            raise RobotConfigError(f"[arm] max_slowdown must be >= 1, got {self.max_slowdown}")
         if not 0.03 <= self.lookahead <= 0.2:
             raise RobotConfigError(
                 f"[arm] lookahead must be in [0.03, 0.2] s, got {self.lookahead}"
@@ -135,9 +142,11 @@ class Workspace:
 
     min: tuple[float, ...] = (-0.25, -0.55, -0.01)
     max: tuple[float, ...] = (0.55, 0.55, 0.75)
+    bin: tuple[float, ...] = (0.15, -0.3, 0.25)
+    """Where a held object is released: the TCP position over the bin (pointing down)."""
 
     def __post_init__(self) -> None:
-        for name in ("min", "max"):
+        for name in ("min", "max", "bin"):
             v = getattr(self, name)
             if len(v) != 3 or not all(isinstance(x, int | float) and math.isfinite(x) for x in v):
                 raise RobotConfigError(f"[workspace] {name} must be 3 finite numbers, got {v!r}")
@@ -145,6 +154,14 @@ class Workspace:
             raise RobotConfigError(
                 f"[workspace] min {list(self.min)} must be below max {list(self.max)} on every axis"
             )
+        if not self.contains([self.bin]).all():
+            raise RobotConfigError(f"[workspace] bin {list(self.bin)} is outside the box")
+
+    def bin_pose(self) -> npt.NDArray[np.float64]:
+        """The TCP pose over the bin: at :attr:`bin`, pointing down."""
+        m = np.diag([1.0, -1.0, -1.0, 1.0])
+        m[:3, 3] = self.bin
+        return m
 
     def contains(self, points: npt.ArrayLike) -> npt.NDArray[np.bool_]:
         """Which of the ``(N, 3)`` world points lie inside the box (bounds included)."""

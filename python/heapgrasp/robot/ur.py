@@ -45,7 +45,14 @@ from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.errors import ConnectionLost, DeviceError, ProtectiveStop, SafetyError
 from heapgrasp.robot.interfaces import Contact, UnreachableError
-from heapgrasp.robot.safety import check_inside, check_joint_path, check_move, check_path
+from heapgrasp.robot.safety import (
+    check_inside,
+    check_move,
+    check_path,
+    joint_speed,
+    measure_path,
+    slowdown,
+)
 
 __all__ = [
     "OutsideWorkspace",
@@ -349,46 +356,86 @@ class URArm:
         self._move_l(cam2world @ np.linalg.inv(self.cam2tcp), lim.tool_speed, lim.tool_acceleration)
         return self._still_frame()
 
-    def plan_path(self, path: TimedPath) -> tuple[F64, F64]:
-        """The TCP samples (times, ``(N, 4, 4)`` world poses) streamed for ``path``,
-        checked (box, caps, joint speeds); raises before anything is sent."""
+    def _ik(self, tcp: F64, picks: list[int]) -> F64:
+        """Joint positions at the TCP samples ``picks`` (controller IK, each near the
+        last); :class:`UnreachableError` where there is none."""
+        joints: list[list[float]] = []
+        for i in picks:
+            q = self._call(
+                "inverse kinematics",
+                self.control.getInverseKinematics,
+                self._to_base(tcp[i]),
+                joints[-1] if joints else [],
+            )
+            if len(q) != 6:
+                raise UnreachableError(f"no inverse kinematics for the path's sample {i}")
+            joints.append(list(q))
+        return np.asarray(joints, dtype=np.float64)
+
+    def _sample(self, path: TimedPath, slowdown: float) -> tuple[F64, F64]:
+        """The path's TCP poses at ``[arm] servo_rate`` with its timing stretched by
+        ``slowdown``."""
         rate = self.config.arm.servo_rate
-        n = max(2, math.ceil(path.duration * rate) + 1)
-        times = np.linspace(0.0, path.duration, n) if path.duration > 0 else np.zeros(1)
-        cams = np.stack([path.at(float(t)) for t in times])
-        tcp = cams @ np.linalg.inv(self.cam2tcp)
+        duration = path.duration * slowdown
+        n = max(2, math.ceil(duration * rate) + 1)
+        times = np.linspace(0.0, duration, n) if duration > 0 else np.zeros(1)
+        cams = np.stack([path.at(float(t) / slowdown) for t in times])
+        return times, cams @ np.linalg.inv(self.cam2tcp)
+
+    def plan_path(self, path: TimedPath) -> tuple[F64, F64, float]:
+        """The TCP samples (times, ``(N, 4, 4)`` world poses) streamed for ``path`` and
+        the slowdown applied, all checked before anything is sent.
+
+        The loop times its paths for the camera (``max_velocity``, ``max_acceleration``);
+        the TCP, behind the camera, moves faster where the camera turns. Like the
+        simulated Panda (:func:`heapgrasp.sim.arm.retime_for_arm`) the path is then
+        slowed uniformly by the factor that brings the TCP's and the camera's speeds,
+        the TCP's angular speed and acceleration, and the joint speeds (controller IK at
+        ~30 Hz) within ``[limits]``; only the timing changes. A path that would need
+        more than ``[arm] max_slowdown``, or leaves the box, is refused."""
+        times, tcp = self._sample(path, 1.0)
         self._check_poses(tcp)
-        if len(times) > 1:
-            try:
-                check_path(self.config.workspace, self.config.limits, times, tcp, self.cam2tcp)
-            except SafetyError as exc:
-                raise PathRefused(str(exc)) from None
-            stride = max(1, int(rate / 30))  # joint speeds from IK at ~30 Hz
-            picks = list(range(0, len(times), stride))
-            if picks[-1] != len(times) - 1:
-                picks.append(len(times) - 1)
-            joints: list[list[float]] = []
-            for i in picks:
-                q = self._call(
-                    "inverse kinematics",
-                    self.control.getInverseKinematics,
-                    self._to_base(tcp[i]),
-                    joints[-1] if joints else [],
+        if len(times) < 2:
+            return times, tcp, 1.0
+        stride = max(1, int(self.config.arm.servo_rate / 30))
+        picks = list(range(0, len(times), stride))
+        if picks[-1] != len(times) - 1:
+            picks.append(len(times) - 1)
+        joints = self._ik(tcp, picks)
+        lim = self.config.limits
+        qd = joint_speed(times[picks], joints)
+        measured = measure_path(times, tcp, self.cam2tcp)
+        k = 1.0
+        for _ in range(6):  # the differences are approximate: measure again after a stretch
+            step = slowdown(measured, lim, qd / k)
+            if step <= 1.0:
+                break
+            k *= step * 1.02
+            if k > self.config.arm.max_slowdown:
+                raise PathRefused(
+                    f"the path would have to go {k:.1f} times slower than planned to keep "
+                    f"the caps (at the planned timing: TCP {measured.tcp_speed:.2f} m/s, "
+                    f"{measured.rotation_speed:.2f} rad/s, {measured.acceleration:.2f} m/s²; "
+                    f"[arm] max_slowdown {self.config.arm.max_slowdown}); nothing was sent"
                 )
-                if len(q) != 6:
-                    raise UnreachableError(f"no inverse kinematics for the path's sample {i}")
-                joints.append(list(q))
-            try:
-                check_joint_path(self.config.limits, times[picks], np.asarray(joints))
-            except SafetyError as exc:
-                raise PathRefused(str(exc)) from None
-        return times, tcp
+            times, tcp = self._sample(path, k)
+            measured = measure_path(times, tcp, self.cam2tcp)
+        try:
+            check_path(self.config.workspace, lim, times, tcp, self.cam2tcp)
+        except SafetyError as exc:
+            raise PathRefused(str(exc)) from None
+        if qd / k > lim.joint_speed * 1.05:
+            raise PathRefused(
+                f"the path turns a joint at {qd / k:.3f} rad/s, above the cap "
+                f"{lim.joint_speed} ([limits] joint_speed); nothing was sent"
+            )
+        return times, tcp, k
 
     def follow(self, path: TimedPath) -> Capture:
         """Streams the checked path (``servoL`` at ``[arm] servo_rate``), reading the TCP
         pose every cycle, and pairs every frame that arrived with the camera pose at its
         timestamp."""
-        _, tcp = self.plan_path(path)
+        _, tcp, slowed = self.plan_path(path)
         lim = self.config.limits
         here = self.tcp
         if np.linalg.norm(here[:3, 3] - tcp[0, :3, 3]) > 0.005:
@@ -433,7 +480,9 @@ class URArm:
         poses = buffer.at([f.time for f in kept]) @ self.cam2tcp if kept else np.zeros((0, 4, 4))
         spec = self._camera.spec
         out = [Frame(p, spec, f.time, f.rgb, f.depth) for p, f in zip(poses, kept, strict=True)]
-        return Capture(np.array([f.time for f in out]), out, duration=hi - lo)
+        return Capture(
+            np.array([f.time for f in out]), out, duration=hi - lo, timing_kept=slowed == 1.0
+        )
 
     def move_to(self, tcp: F64, *, opening: float) -> None:
         """Opens the gripper to ``opening``, then goes up to ``[arm] travel_height``,
