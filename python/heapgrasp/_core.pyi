@@ -431,7 +431,9 @@ def grasp_region(
     that could hold a grasp).
 
     ``points``, ``normals`` (N, 3) float64 (non-zero normals, normalised here);
-    ``targets`` (M, 3) float64; ``half_length``, ``radius`` > 0 (m). Returns (M,) bool.
+    ``targets`` (M, 3) float64; ``half_length``, ``radius`` > 0 (m) with
+    ``half_length / radius <= 10,000`` (the region is sampled every ``radius`` along each
+    normal). Returns (M,) bool.
     """
 
 def surfel_visibility(

@@ -31,6 +31,10 @@ use crate::synthesis::{CloudIndex, Point};
 const MIN_POINTS_PER_THREAD: usize = 2_000;
 /// Rays per thread below which visibility stays on one thread.
 const MIN_RAYS_PER_THREAD: usize = 4_000;
+/// The most samples the grasp region takes along each side of a normal line
+/// (`half_length / radius`): beyond it the work is unbounded for all practical purposes
+/// (a radius of 1e-300 m), and the call is refused.
+pub const MAX_REGION_SAMPLES: f64 = 10_000.0;
 
 fn threads(n: usize, per_thread: usize, threads: usize) -> usize {
     let t = if threads == 0 {
@@ -95,6 +99,16 @@ pub fn grasp_region(
 ) -> Result<Vec<bool>> {
     positive("half_length", half_length)?;
     positive("radius", radius)?;
+    if half_length / radius > MAX_REGION_SAMPLES {
+        return Err(Error::value(
+            "radius",
+            format!("{radius}"),
+            format!(
+                "expected half_length / radius <= {MAX_REGION_SAMPLES} (half_length is \
+                 {half_length}): the region is sampled every radius along each normal"
+            ),
+        ));
+    }
     let normals = unit_normals(points, normals)?;
     if points.is_empty() || targets.is_empty() {
         return Ok(vec![false; targets.len()]);
@@ -218,6 +232,21 @@ pub fn surfel_visibility(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_radius_tiny_against_half_length_is_refused_not_looped_over() {
+        let p = [[0.0, 0.0, 0.0]];
+        let n = [[0.0, 0.0, 1.0]];
+        let t = [[0.0, 0.0, 0.01]];
+        for (half, radius) in [(0.08, 1e-300), (1e300, 0.015), (0.2, 5e-324)] {
+            let err = grasp_region(&p, &n, &t, half, radius, 1).unwrap_err();
+            assert!(err.to_string().contains("half_length / radius"), "{err}");
+        }
+        assert_eq!(
+            grasp_region(&p, &n, &t, 0.08, 0.08 / MAX_REGION_SAMPLES, 1).unwrap(),
+            [true]
+        );
+    }
 
     /// A square sheet of points in the plane z = 0 (normals +z), `n × n` at `spacing`.
     fn sheet(n: usize, spacing: f64) -> (Vec<Point>, Vec<Point>) {
