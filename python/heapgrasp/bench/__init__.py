@@ -14,7 +14,9 @@ its subcommand (and sets ``func``, the function that runs it, as a parser defaul
 * :mod:`heapgrasp.bench.compare` -- ``heapgrasp bench compare``: two finished runs on
   the same scenes, success rates with intervals and their paired difference;
 * :mod:`heapgrasp.bench.viewsphere` -- ``heapgrasp bench viewsphere``: seed 001's
-  active-vision benchmark (random, brick and BFS policies on the viewsphere).
+  active-vision benchmark (random, brick and BFS policies on the viewsphere);
+* :mod:`heapgrasp.bench.seg` -- ``heapgrasp bench seg``: the segmentation network's CPU
+  time per frame, per encoder.
 
 Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`.
 """
@@ -23,7 +25,7 @@ from __future__ import annotations
 
 import argparse
 
-from heapgrasp.bench import carve, compare, grasp, sim, viewsphere, world
+from heapgrasp.bench import carve, compare, grasp, seg, sim, viewsphere, world
 
 __all__ = ["add_parser"]
 
@@ -58,4 +60,5 @@ def add_parser(
     grasp.add_parser(benches)
     compare.add_parser(benches)
     viewsphere.add_parser(benches)
+    seg.add_parser(benches)
     return p

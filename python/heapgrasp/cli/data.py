@@ -20,6 +20,13 @@ the grid the loop feeds the grasp network (Ŝ≥λ after Algorithm 1's random vi
 waypoints or no-vp's circle, and the VGN baseline's TSDF), and VGN's grasps labelled on
 the exact geometry, balanced (:mod:`heapgrasp.data.grasps`).
 
+``heapgrasp data seg``: the segmentation network's (docs/segmentation.md)::
+
+    heapgrasp data seg runs/seg-synth --scenes 500 --views 8 --size 320x240
+
+Rendered RGB images of random scenes and their exact 4-class masks, as ``images/`` and
+``masks/`` PNGs that ``heapgrasp seg train`` reads (:mod:`heapgrasp.data.seg`).
+
 ``heapgrasp data viewsphere-paths``: seed 001's supervised viewsphere policies'
 (§4.3.1)::
 
@@ -54,11 +61,12 @@ __all__ = ["add_parser"]
 def _generate(args: argparse.Namespace, dataset: str, **settings: Any) -> int:
     """Generates the dataset (``views`` or ``grasps``) the options ask for."""
     from heapgrasp.data.grasps import GraspDataConfig
+    from heapgrasp.data.seg import SegDataConfig
     from heapgrasp.data.shards import ShardFailure, generate
     from heapgrasp.data.views import ViewDataConfig
     from heapgrasp.data.viewsphere_paths import ViewspherePathsConfig
 
-    kinds = {"views": ViewDataConfig, "grasps": GraspDataConfig}
+    kinds = {"views": ViewDataConfig, "grasps": GraspDataConfig, "seg": SegDataConfig}
     common = {
         "scenes": args.scenes,
         "root_seed": args.seed,
@@ -97,7 +105,12 @@ def _views(args: argparse.Namespace) -> int:
 
 
 def _grasps(args: argparse.Namespace) -> int:
-    return _generate(args, "grasps", input=args.input)
+    return _generate(args, "grasps", input=args.input, gripper=args.gripper)
+
+
+def _seg(args: argparse.Namespace) -> int:
+    height, width = args.size
+    return _generate(args, "seg", views=args.views, width=width, height=height, out_dir=args.out)
 
 
 def _viewsphere_paths(args: argparse.Namespace) -> int:
@@ -198,7 +211,26 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "(HEAPGrasp, no-vp; ~0.4 s a scene), tsdf = the VGN baseline's TSDF from sensor "
         "depth (~8 s a scene)",
     )
+    p.add_argument(
+        "--gripper",
+        choices=("panda", "robotiq-2f140"),
+        default="panda",
+        help="the hand the grasps are labelled for: panda (VGN's; the shipped networks) or "
+        "robotiq-2f140 (the real robot's, 14 cm; a network trained on it plans for it)",
+    )
     p.set_defaults(func=_grasps)
+    p = _dataset_parser(
+        sub,
+        "seg",
+        "segmentation data: rendered RGB images and exact 4-class masks (images/, masks/)",
+        scenes=100,
+        shard_size=10,
+    )
+    p.add_argument("--views", type=int_at_least(1), default=8, help="images per scene (8)")
+    from heapgrasp.cli.seg import size_arg
+
+    p.add_argument("--size", type=size_arg, default=(240, 320), metavar="WxH", help="(320x240)")
+    p.set_defaults(func=_seg)
     from heapgrasp.bench.argtypes import comma_choices
     from heapgrasp.data.viewsphere_paths import SUPERVISED_OBJECTS
     from heapgrasp.sim.viewsphere_objects import TRAIN_OBJECTS

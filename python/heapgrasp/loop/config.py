@@ -43,6 +43,7 @@ __all__ = [
     "OBJECT_SETS",
     "PAPER_EXTENSIONS",
     "PRESETS_DIR",
+    "SEGMENTERS",
     "STARTS",
     "VIEW_PLANNERS",
     "ConfigError",
@@ -57,6 +58,8 @@ __all__ = [
 METHODS = ("heapgrasp", "no-vp", "vgn", "hemisphere6")
 #: ``--view-planner`` values (used by ``heapgrasp``; the baselines fix their own views).
 VIEW_PLANNERS = ("oracle", "network", "circle", "hemisphere6")
+#: ``segmenter`` values: the simulator's exact silhouettes, or the segmentation network.
+SEGMENTERS = ("truth", "network")
 #: ``--grasp-planner`` values.
 GRASP_PLANNERS = ("antipodal", "network")
 LAYOUTS = ("pile", "packed")
@@ -155,6 +158,12 @@ class RunConfig:
     hand-eye camera)."""
     noise: float = _run(0.0, "Table V")
     """Probability that each mask pixel is flipped."""
+    segmenter: str = _run("truth", "§V")
+    """``truth`` (the simulator's exact silhouettes, with ``noise`` pixel flips) or
+    ``network`` (the 4-class segmentation network of ``seg_weights`` on RGB frames)."""
+    seg_weights: str | None = _run(None, "ours")
+    """Path of the segmentation network's ONNX file (``segmenter = "network"``;
+    ``heapgrasp seg train`` writes one)."""
     ideal_depth: bool = _run(False, "Table II")
     """Give the VGN baseline ideal depth (the paper's simulation, Table II) instead of the
     per-category sensor model (transparent / specular failures, Table III)."""
@@ -265,6 +274,25 @@ class RunConfig:
         ):
             raise ConfigError(f"object_dir: must be a directory path; got {self.object_dir!r}")
         choice("mount", MOUNTS)
+        choice("segmenter", SEGMENTERS)
+        if self.seg_weights is not None and not (
+            isinstance(self.seg_weights, str) and self.seg_weights.strip()
+        ):
+            raise ConfigError(f"seg_weights: must be a file path; got {self.seg_weights!r}")
+        if self.segmenter == "network":
+            if self.seg_weights is None:
+                raise ConfigError(
+                    "seg_weights: segmenter = 'network' needs the segmentation network's "
+                    "ONNX file (heapgrasp seg train writes OUT/segmentation.onnx)"
+                )
+            if not Path(self.seg_weights).is_file():
+                raise ConfigError(f"seg_weights: file not found: {self.seg_weights}")
+            if self.method == "vgn":
+                raise ConfigError(
+                    "segmenter: 'network' needs a silhouette method (vgn reads depth)"
+                )
+            if self.noise > 0:
+                raise ConfigError("noise: pixel flips apply to segmenter = 'truth' only")
         if self.start not in STARTS:
             raise ConfigError(f"start: must be one of {', '.join(STARTS)}; got {self.start!r}")
         if not isinstance(self.grasp_critic, str) or not self.grasp_critic:

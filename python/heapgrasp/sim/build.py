@@ -159,7 +159,7 @@ def sim_pipeline(
     (``body``, default :func:`make_body`), its scene truth, and the segmenter reading
     exact (or noisy) silhouettes from it; any stage passed replaces the configured one.
     ``rgb``: the camera renders colour images too (:func:`sim_camera`)."""
-    camera = sim_camera(config, rgb=rgb)
+    camera = sim_camera(config, rgb=rgb or config.segmenter == "network")
     robot = SimRobot(body if body is not None else make_body(config, world), camera)
     truth = SimTruth(world, robot.body)
     return build_pipeline(
