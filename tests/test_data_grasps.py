@@ -235,6 +235,26 @@ def test_bad_settings_are_named() -> None:
         GraspDataConfig(points=0)
     with pytest.raises(ValueError, match=r"input must be one of .*got 'depth'"):
         GraspDataConfig(input="depth")
+    with pytest.raises(ValueError, match="unknown gripper 'robotiq'; choose among panda"):
+        GraspDataConfig(gripper="robotiq")
+
+
+def test_grasps_for_the_2f140_are_labelled_with_its_geometry() -> None:
+    """``--gripper robotiq-2f140``: failures carry its 14 cm opening, the grasp origin is
+    its palm's face, and its samples differ from the Panda's on the same scene."""
+    from heapgrasp.data.grasps import scene_sample
+    from heapgrasp.geometry.gripper import ROBOTIQ_2F140
+
+    config = GraspDataConfig(scenes=1, root_seed=3, shard_size=1, max_objects=2)
+    robotiq = GraspDataConfig(**{**config.identity(), "scenes": 1, "gripper": "robotiq-2f140"})
+    panda_sample = scene_sample(config, 0)
+    ours = scene_sample(robotiq, 0)
+    assert panda_sample is not None and ours is not None
+    label, width = ours["grasp_label"], ours["grasp_width"]
+    np.testing.assert_allclose(width[label == 0], ROBOTIQ_2F140.max_opening, atol=1e-6)
+    assert (width <= ROBOTIQ_2F140.max_opening + 1e-6).all()
+    np.testing.assert_array_equal(ours["occupancy"], panda_sample["occupancy"])  # same capture
+    assert not np.array_equal(ours["grasp_position"], panda_sample["grasp_position"])
 
 
 def test_cli(

@@ -433,6 +433,30 @@ def test_a_palm_origin_network_grasps_ahead_of_its_voxel(onnx_files, tmp_path):
         NetworkGraspPlanner(bad)
 
 
+def test_a_network_for_the_2f140_plans_for_its_hand(onnx_files, tmp_path):
+    """A network trained on ``--gripper robotiq-2f140`` data puts the TCP ahead of its
+    voxels by that hand's palm; the loop refuses it on a hand that opens less."""
+    from heapgrasp.geometry.errors import WeightsError
+    from heapgrasp.geometry.gripper import PANDA_HAND, ROBOTIQ_2F140
+    from heapgrasp.loop.config import ConfigError, RunConfig
+    from heapgrasp.loop.phase import make_grasp_planner
+    from heapgrasp.nets import export_onnx
+
+    net, _ = onnx_files["grasp40"]
+    hp = {"input_kind": "occupancy", "grasp_origin": "palm", "gripper": "robotiq-2f140"}
+    path = export_onnx(net, tmp_path / "2f140.onnx", provenance={}, hparams=hp)
+    planner = NetworkGraspPlanner(path)
+    assert planner.gripper == "robotiq-2f140"
+    assert planner.tcp_offset == pytest.approx(-ROBOTIQ_2F140.palm_front)
+    config = RunConfig(grasp_planner="network", grasp_weights=str(path))
+    assert make_grasp_planner(config, ROBOTIQ_2F140).gripper == "robotiq-2f140"
+    with pytest.raises(ConfigError, match="trained for the robotiq-2f140 hand, which opens to 14"):
+        make_grasp_planner(config, PANDA_HAND)
+    bad = export_onnx(net, tmp_path / "bad.onnx", provenance={}, hparams={**hp, "gripper": "x"})
+    with pytest.raises(WeightsError, match="gripper is 'x'"):
+        NetworkGraspPlanner(bad)
+
+
 def test_grasp_planner_batch_matches_single(onnx_files):
     planner = NetworkGraspPlanner(onnx_files["grasp16"][1])
     frame = _frame(SMALL)

@@ -94,7 +94,6 @@ MEAN_EXTRA_OBJECTS = 4.0
 
 
 def _settings() -> dict[str, Any]:
-    from heapgrasp.geometry.gripper import PANDA_HAND
     from heapgrasp.loop.config import RunConfig
     from heapgrasp.perception.depth import DepthPerception
 
@@ -115,7 +114,6 @@ def _settings() -> dict[str, Any]:
         **{name: getattr(run, name) for name in names},
         "circle": CIRCLE,
         "tsdf_truncation": DepthPerception.truncation,
-        "max_opening": PANDA_HAND.max_opening,
         "labeller": _labeller_digest(),
     }
 
@@ -156,6 +154,11 @@ class GraspDataConfig(ShardedConfig):
     grasps for the same capture."""
     yaws: int = 6
     """Yaws per point, in [0, π) (VGN)."""
+    gripper: str = "panda"
+    """The hand the grasps are labelled for (:data:`heapgrasp.geometry.gripper.GRIPPERS`):
+    ``panda`` (VGN's, the simulated hand's convex collision meshes) or ``robotiq-2f140``
+    (the real robot's, its :class:`~heapgrasp.geometry.gripper.GripperGeometry` boxes):
+    its opening, finger depth and collision shape."""
 
     spec: ClassVar[DatasetSpec] = SPEC
 
@@ -164,6 +167,9 @@ class GraspDataConfig(ShardedConfig):
         self.positive("max_objects", "L", "points", "yaws")
         if self.input not in INPUTS:
             raise ValueError(f"input must be one of {INPUTS}, got {self.input!r}")
+        from heapgrasp.geometry.gripper import gripper_named
+
+        gripper_named(self.gripper)
 
     def run_shard(self, shard: int) -> dict[str, Any]:
         """Arrays of ``shard`` (:func:`shard_samples`)."""
@@ -259,6 +265,7 @@ def draw_scene(
 
 def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> dict[str, Any] | None:
     """Runs scene ``index``; its sample, or None when dropped."""
+    from heapgrasp.geometry.gripper import gripper_named
     from heapgrasp.sim.build import object_library, sim_pipeline
 
     if library is None:
@@ -282,16 +289,14 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
             pipeline = sim_pipeline(depth, world, seed=seed, grasp_planner=recorder)
             pipeline.plan()
         frame = pipeline.frame
-        max_opening = pipeline.robot.gripper.geometry.max_opening
+        hand = gripper_named(config.gripper)
         grasps = _label(world, rng, config, recorder.grid, frame)
     # VGN's grasp origin, the centre of the palm's face: in front of the surface grasped
-    palm = (
-        grasps["position"] + grasps["pose"][:, :3, 2] * pipeline.robot.gripper.geometry.palm_front
-    )
+    palm = grasps["position"] + grasps["pose"][:, :3, 2] * hand.palm_front
     idx = frame.index(palm)
     inside = ((idx >= 0) & (idx < frame.resolution)).all(axis=1)
     label = grasps["label"]
-    width = np.where(label == 1, grasps["width"], max_opening)
+    width = np.where(label == 1, grasps["width"], hand.max_opening)
     positives = np.flatnonzero(inside & (label == 1))
     if len(positives) == 0:
         return None
@@ -325,13 +330,19 @@ def _label(
     per point: ``position`` ``(N, 3)``, ``quat`` ``(N, 4)`` (x, y, z, w), ``width``
     ``(N,)`` (the widest opening for a failure), ``label`` ``(N,)`` (1 success, 0
     failure)."""
+    import dataclasses
+
+    from heapgrasp.geometry.gripper import PANDA_HAND, gripper_named
     from heapgrasp.sim import grasp_labels
 
+    gripper = gripper_named(config.gripper)
     points, normals = observed_surface(grid, config.input, frame, rng, config.points)
     samples = grasp_labels.grasps_at(
-        points, normals, np.full(len(points), -1, np.int64), rng, config.yaws
+        points, normals, np.full(len(points), -1, np.int64), rng, config.yaws, gripper=gripper
     )
-    return dict(grasp_labels.label_samples(world, samples))
+    # The Panda is labelled with its convex collision meshes; another hand with its boxes.
+    hand = None if gripper == PANDA_HAND else dataclasses.asdict(gripper)
+    return dict(grasp_labels.label_samples(world, samples, hand=hand))
 
 
 MIN_HEIGHT = 0.005

@@ -14,7 +14,14 @@ from dataclasses import dataclass
 
 from heapgrasp.geometry.checks import finite, positive
 
-__all__ = ["GRASP_DEPTH_RANGE", "PANDA_HAND", "ROBOTIQ_2F140", "GripperGeometry"]
+__all__ = [
+    "GRASP_DEPTH_RANGE",
+    "GRIPPERS",
+    "PANDA_HAND",
+    "ROBOTIQ_2F140",
+    "GripperGeometry",
+    "gripper_named",
+]
 
 #: VGN's grasp depths, in finger depths: how far in front of the surface point a grasp's
 #: palm face is placed (``[−ε, 1 + ε]``, ε = 0.1), for its data and its detection.
@@ -166,3 +173,14 @@ coupling to the flange (``palm_back``, ``palm_back_half``: a 75 mm disc, 12 mm t
 The model is of the open hand: closing fully brings the fingertips about 24 mm further
 out along z (URDF), which no static box model shows.
 """
+
+#: The grippers described here, by the name data and training options take.
+GRIPPERS: dict[str, GripperGeometry] = {"panda": PANDA_HAND, "robotiq-2f140": ROBOTIQ_2F140}
+
+
+def gripper_named(name: str) -> GripperGeometry:
+    """The gripper called ``name`` in :data:`GRIPPERS`; ValueError naming the choices."""
+    try:
+        return GRIPPERS[name]
+    except KeyError:
+        raise ValueError(f"unknown gripper {name!r}; choose among {', '.join(GRIPPERS)}") from None

@@ -582,9 +582,24 @@ class Pipeline:
 # --------------------------------------------------------------------------- builders
 
 
-def make_segmenter(config: RunConfig, truth: MaskSource, seed: int = 0) -> Segmenter:
-    """The simulator's segmenters: exact silhouettes from ``truth``, with pixel-flip noise
-    ``config.noise`` where it is > 0 (Table V)."""
+def make_segmenter(config: RunConfig, truth: MaskSource | None, seed: int = 0) -> Segmenter:
+    """The configured segmenter: with ``segmenter = "network"`` the segmentation network
+    of ``config.seg_weights`` (:class:`~heapgrasp.perception.segnet.NetworkSegmenter`, on
+    RGB frames), else the simulator's: exact silhouettes from ``truth``, with pixel-flip
+    noise ``config.noise`` where it is > 0 (Table V), which needs ``truth``."""
+    if config.segmenter == "network":
+        from heapgrasp.geometry.errors import WeightsError
+        from heapgrasp.perception.segnet import NetworkSegmenter
+
+        try:
+            return NetworkSegmenter(str(config.seg_weights), device=net_device(config))
+        except (FileNotFoundError, WeightsError) as err:
+            raise ConfigError(f"seg_weights: {err}") from None
+    if truth is None:
+        raise ConfigError(
+            "segmenter: the simulator's silhouettes need its scene truth; a real camera "
+            "needs segmenter = 'network' and seg_weights"
+        )
     if config.noise > 0:
         return NoisySegmenter(truth, config.noise, seed=seed)
     return IdealSegmenter(truth)
@@ -639,6 +654,14 @@ def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND)
     planner = _open_network(
         config, "grasp_weights", weights, lambda w, d: NetworkGraspPlanner(w, device=d)
     )
+    from heapgrasp.geometry.gripper import GRIPPERS
+
+    if GRIPPERS[planner.gripper].max_opening > gripper.max_opening + 1e-9:
+        raise ConfigError(
+            f"grasp_weights: {weights} was trained for the {planner.gripper} hand, which "
+            f"opens to {GRIPPERS[planner.gripper].max_opening * 100:g} cm; the robot's "
+            f"opens to {gripper.max_opening * 100:g} cm"
+        )
     if planner.input_kind != grid:
         raise ConfigError(
             f"grasp_weights: {weights} was trained on {planner.input_kind} grids, but the "

@@ -75,7 +75,15 @@ _DATA_VERSION = 2
 INPUT_KINDS = ("occupancy", "tsdf")
 #: Settings of a dataset's ``config`` a network trained on it depends on: datasets
 #: trained and validated together must agree on them.
-GEOMETRY_KEYS = ("resolution", "cube_size", "lam", "roof_radius", "tsdf_truncation", "max_opening")
+GEOMETRY_KEYS = (
+    "resolution",
+    "cube_size",
+    "lam",
+    "roof_radius",
+    "tsdf_truncation",
+    "max_opening",
+    "gripper",
+)
 
 _PER_SCENE = {
     "origin": (np.float64, (3,)),
@@ -236,7 +244,17 @@ def _geometry(config: Mapping[str, Any], where: str) -> dict[str, Any]:
             f"{where}: config['resolution'] is {r!r}, not a multiple of 8 (the network's "
             "three stride-2 levels)"
         )
-    return {key: config.get(key) for key in GEOMETRY_KEYS}
+    geometry = {key: config.get(key) for key in GEOMETRY_KEYS}
+    # Datasets made before the gripper option were the Panda's.
+    geometry["gripper"] = geometry["gripper"] or "panda"
+    if geometry["max_opening"] is None:
+        from heapgrasp.geometry.gripper import gripper_named
+
+        try:
+            geometry["max_opening"] = gripper_named(str(geometry["gripper"])).max_opening
+        except ValueError as exc:
+            raise GraspDataError(f"{where}: config['gripper']: {exc}") from None
+    return geometry
 
 
 def load_grasp_dataset(

@@ -696,6 +696,10 @@ def write_outputs(
         net,
         out_dir / "grasp_network.onnx",
         provenance=finite(card),
-        hparams={"input_kind": config.input_kind, "grasp_origin": "palm"},
+        hparams={
+            "input_kind": config.input_kind,
+            "grasp_origin": "palm",
+            "gripper": str(train_data.geometry.get("gripper") or "panda"),
+        },
     )
     return [weights, meta, out_dir / "metrics.json", onnx_path]

@@ -26,7 +26,7 @@ from scipy import ndimage
 
 from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.geometry.grid import GridFrame
-from heapgrasp.geometry.gripper import GRASP_DEPTH_RANGE, PANDA_HAND
+from heapgrasp.geometry.gripper import GRASP_DEPTH_RANGE, GRIPPERS
 from heapgrasp.inference import OnnxNetwork
 from heapgrasp.planning.volumes import GraspVolumes
 
@@ -120,12 +120,17 @@ class NetworkGraspPlanner:
         """Where a voxel's grasp lies (its file's ``grasp_origin``): ``"palm"``, VGN's
         grasp frame, the centre of the palm's face (the networks trained since
         ``heapgrasp data grasps`` format 2), or ``"tcp"`` (older files)."""
-        self.tcp_offset: float = -PANDA_HAND.palm_front if origin == "palm" else 0.0
+        name = self._hparam("gripper", "panda", tuple(GRIPPERS))
+        self.gripper: str = name
+        """The hand the network's grasps were labelled for (its file's ``gripper``):
+        ``"panda"`` (the shipped networks, and files made before the option) or
+        ``"robotiq-2f140"`` (``heapgrasp data grasps --gripper robotiq-2f140``)."""
+        hand = GRIPPERS[name]
+        self.tcp_offset: float = -hand.palm_front if origin == "palm" else 0.0
         """The TCP's distance ahead of a voxel along the approach (m,
-        :attr:`~heapgrasp.planning.volumes.GraspVolumes.tcp_offset`): the networks are
-        trained for the Panda hand."""
+        :attr:`~heapgrasp.planning.volumes.GraspVolumes.tcp_offset`), for :attr:`gripper`."""
         self.hull_margin: float = (
-            GRASP_DEPTH_RANGE[1] * PANDA_HAND.finger_depth if origin == "palm" else 0.0
+            GRASP_DEPTH_RANGE[1] * hand.finger_depth if origin == "palm" else 0.0
         )
         """How far in front of the occupied grid grasps may lie, m, plus one voxel
         (``occupancy`` input; a TSDF network's output is masked by :func:`tsdf_valid`

@@ -372,14 +372,21 @@ def label_scene(
     return label_samples(world, samples, threads=threads)
 
 
-def label_samples(world: SimWorld, samples: GraspSamples, *, threads: int = 0) -> dict[str, Any]:
+def label_samples(
+    world: SimWorld,
+    samples: GraspSamples,
+    *,
+    threads: int = 0,
+    hand: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
     """``samples`` labelled on ``world`` and reduced to one grasp per point, as
-    :func:`label_scene` returns them."""
+    :func:`label_scene` returns them; ``hand`` as :func:`labeller` takes it (default:
+    the simulated Panda hand's convex parts)."""
     from scipy.spatial.transform import Rotation
 
     yaws = len(samples.yaws)
     n = len(samples.points)
-    ok, width, held, reason = labeller(world).label(samples.flat(), threads=threads)
+    ok, width, held, reason = labeller(world, hand=hand).label(samples.flat(), threads=threads)
     index, label, best_width = best_yaw(ok.reshape(n, yaws), width.reshape(n, yaws))
     rows = np.arange(n)
     pose = samples.poses[rows, index]
