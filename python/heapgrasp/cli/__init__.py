@@ -13,6 +13,9 @@ parsed :class:`argparse.Namespace` and returning the exit status::
     heapgrasp data grasps                    the grasp network's dataset (VGN's scheme)
     heapgrasp train views DATA_DIR ...       the view network trained on that dataset
     heapgrasp train grasps DATA ...          the grasp network trained on grasp datasets
+    heapgrasp seg train|eval|predict         the 4-class segmentation network (DeepLabv3+)
+    heapgrasp robot init|check|calibrate|run the real robot (UR + RealSense + Robotiq)
+    heapgrasp replay RUN_DIR                 perception and planning rerun on a robot run
 """
 
 from __future__ import annotations
@@ -35,7 +38,9 @@ def build_parser() -> argparse.ArgumentParser:
     from heapgrasp import __version__, bench
     from heapgrasp.cli import critic as critic_cli
     from heapgrasp.cli import data as data_cli
+    from heapgrasp.cli import robot as robot_cli
     from heapgrasp.cli import run as run_cli
+    from heapgrasp.cli import seg as seg_cli
     from heapgrasp.cli import show as show_cli
     from heapgrasp.cli import sim as sim_cli
     from heapgrasp.cli import train as train_cli
@@ -60,6 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
     critic_cli.add_parser(commands)
     data_cli.add_parser(commands)
     train_cli.add_parser(commands)
+    seg_cli.add_parser(commands)
+    robot_cli.add_parser(commands)
+    robot_cli.add_replay_parser(commands)
     return parser
 
 

@@ -228,6 +228,8 @@ class URArm:
         self._sleep = sleep
         self.commands = 0
         """Motion commands sent so far (for the record)."""
+        self.slowdowns: list[float] = []
+        """The slowdown of every camera path followed (1: at the loop's timing)."""
 
     # ------------------------------------------------------------------ state
     @property
@@ -436,6 +438,7 @@ class URArm:
         pose every cycle, and pairs every frame that arrived with the camera pose at its
         timestamp."""
         _, tcp, slowed = self.plan_path(path)
+        self.slowdowns.append(slowed)
         lim = self.config.limits
         here = self.tcp
         if np.linalg.norm(here[:3, 3] - tcp[0, :3, 3]) > 0.005:

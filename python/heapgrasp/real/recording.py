@@ -1,0 +1,181 @@
+"""Every frame a real run captures, saved as it is taken, and read back for a replay.
+
+Layout under the run directory::
+
+    frames/scene_000/phase_000/000_look.npz
+    frames/scene_000/phase_000/001_follow.npz
+    ...
+
+Each file holds one :meth:`~heapgrasp.robot.interfaces.Arm.look` frame or one
+:meth:`~heapgrasp.robot.interfaces.Arm.follow` capture: ``rgb`` ``(N, H, W, 3)``,
+``depth`` ``(N, H, W)`` where the camera gave depth, ``poses`` ``(N, 4, 4)``
+(``cam2world``), ``times`` ``(N,)``, ``intrinsics`` (``CameraSpec`` fields) and the
+motion's ``duration``. Files are written to a temporary name and renamed, so a crash
+never leaves a torn file under a final name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from heapgrasp.geometry.camera import CameraSpec
+from heapgrasp.geometry.motion import TimedPath
+from heapgrasp.perception.frames import Capture, Frame
+from heapgrasp.robot.interfaces import Arm, Contact
+
+__all__ = ["Recorded", "RecordingArm", "load_phase", "phase_dirs", "save_frames"]
+
+F64 = npt.NDArray[np.float64]
+
+
+def save_frames(path: Path, frames: list[Frame], kind: str, duration: float) -> None:
+    """Writes ``frames`` (one look or one capture) to ``path`` atomically."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    arrays: dict[str, Any] = {
+        "kind": np.array(kind),
+        "duration": np.array(float(duration)),
+        "poses": np.stack([f.cam2world for f in frames]) if frames else np.zeros((0, 4, 4)),
+        "times": np.array([f.time for f in frames], dtype=np.float64),
+    }
+    if frames:
+        spec = frames[0].camera
+        arrays["intrinsics"] = np.array(
+            [spec.width, spec.height, spec.fx, spec.fy, spec.cx, spec.cy, spec.fps]
+        )
+        if all(f.rgb is not None for f in frames):
+            arrays["rgb"] = np.stack([f.rgb for f in frames])  # type: ignore[misc]
+        if all(f.depth is not None for f in frames):
+            arrays["depth"] = np.stack([f.depth for f in frames])  # type: ignore[misc]
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+@dataclass
+class Recorded:
+    """One saved look or capture."""
+
+    kind: str
+    """``look`` or ``follow``."""
+    frames: list[Frame]
+    duration: float
+    path: Path
+
+    def capture(self) -> Capture:
+        """As the :class:`Capture` the arm returned."""
+        times = np.array([f.time for f in self.frames], dtype=np.float64)
+        return Capture(times, self.frames, self.duration)
+
+
+def _load(path: Path) -> Recorded:
+    with np.load(path) as z:
+        kind = str(z["kind"])
+        poses, times = z["poses"], z["times"]
+        frames: list[Frame] = []
+        if len(poses):
+            w, h, fx, fy, cx, cy, fps = z["intrinsics"]
+            spec = CameraSpec(
+                int(w), int(h), float(fx), float(fy), float(cx), float(cy), float(fps)
+            )
+            rgb = z["rgb"] if "rgb" in z else None
+            depth = z["depth"] if "depth" in z else None
+            for i in range(len(poses)):
+                frames.append(
+                    Frame(
+                        np.asarray(poses[i], dtype=np.float64),
+                        spec,
+                        float(times[i]),
+                        None if rgb is None else rgb[i],
+                        None if depth is None else depth[i],
+                    )
+                )
+        return Recorded(kind, frames, float(z["duration"]), path)
+
+
+def phase_dirs(frames_dir: Path, scene: int) -> list[Path]:
+    """The recorded phases of ``scene``, in order."""
+    root = frames_dir / f"scene_{scene:03d}"
+    return sorted(p for p in root.glob("phase_*") if p.is_dir())
+
+
+def load_phase(phase_dir: Path) -> list[Recorded]:
+    """The looks and captures of one recorded phase, in the order they were taken."""
+    return [_load(p) for p in sorted(phase_dir.glob("*.npz"))]
+
+
+class RecordingArm:
+    """An :class:`~heapgrasp.robot.interfaces.Arm` that saves every frame it returns
+    (:func:`save_frames`) under ``frames_dir/scene_SSS/phase_PPP/``; call
+    :meth:`begin_phase` before each phase."""
+
+    def __init__(self, arm: Arm, frames_dir: Path, scene: int) -> None:
+        self.arm = arm
+        self.frames_dir = frames_dir
+        self.scene = scene
+        self.phase = -1
+        self._count = 0
+        self.saved: list[Path] = []
+
+    def begin_phase(self) -> None:
+        """The next frames belong to a new phase."""
+        self.phase += 1
+        self._count = 0
+
+    def _path(self, kind: str) -> Path:
+        phase = max(self.phase, 0)
+        name = f"scene_{self.scene:03d}/phase_{phase:03d}/{self._count:03d}_{kind}.npz"
+        self._count += 1
+        return self.frames_dir / name
+
+    @property
+    def camera(self) -> Any:
+        return self.arm.camera
+
+    @property
+    def clock(self) -> float:
+        return self.arm.clock
+
+    @property
+    def tcp(self) -> F64:
+        return self.arm.tcp
+
+    def park(self) -> None:
+        self.arm.park()
+
+    def look(self, cam2world: F64) -> Frame:
+        frame = self.arm.look(cam2world)
+        path = self._path("look")
+        save_frames(path, [frame], "look", 0.0)
+        self.saved.append(path)
+        return frame
+
+    def follow(self, path: TimedPath) -> Capture:
+        cap = self.arm.follow(path)
+        out = self._path("follow")
+        save_frames(out, cap.frames, "follow", cap.duration)
+        self.saved.append(out)
+        return cap
+
+    def move_to(self, tcp: F64, *, opening: float) -> None:
+        self.arm.move_to(tcp, opening=opening)
+
+    def move_linear(self, tcp: F64, *, speed: float = 0.1, stop_on_contact: bool = False) -> bool:
+        return self.arm.move_linear(tcp, speed=speed, stop_on_contact=stop_on_contact)
+
+    def contact(self) -> Contact | None:
+        return self.arm.contact()
+
+
+def spec_dict(spec: CameraSpec) -> dict[str, Any]:
+    """A camera's intrinsics as plain data."""
+    return dataclasses.asdict(spec)

@@ -1,0 +1,319 @@
+"""``heapgrasp robot run``: the dry run (the default) and the executed clutter removal.
+
+**Dry run** (:func:`dry_run`): connects every device, activates nothing and sends no
+motion. The arm stands where it is; every frame is what the camera sees from there. The
+loop plans its first phase as it would (HEAPGrasp §IV: the grid, the view waypoints of
+eq. 18, the grasp of eq. 16) and every motion it asks for is *checked* instead of sent:
+the start pose, each timed camera path (the workspace box, the speed caps, the joint
+speeds from the controller's inverse kinematics) and the grasp's pre-grasp and grasp
+poses. It writes ``dry_run.json`` (each check, the waypoints, the grasp), the frames, and
+a Rerun recording of the phase (grid, views, grasp) where ``rerun-sdk`` is installed.
+
+**Executed run** (:func:`execute`, ``--execute``): the clutter-removal protocol of §VI-C
+(:func:`heapgrasp.loop.protocol.run_clutter_removal`) on the arm; the operator says how
+many objects were placed (rule (i) needs a count the robot cannot see). It writes what
+the simulator writes — ``config.json``, ``scenes.jsonl`` (one record per run, appended
+and synced), ``results.json`` — plus ``robot.json`` (the robot config) and every frame
+(:mod:`heapgrasp.real.recording`). A device error, a protective stop or Ctrl-C stops
+the arm; the record of that run keeps the error and every phase planned so far, and the
+frames stay on disk. ``--resume`` appends the next run to the same directory.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from heapgrasp.geometry.motion import TimedPath
+from heapgrasp.loop.config import RunConfig
+from heapgrasp.loop.protocol import PlanResult, run_clutter_removal
+from heapgrasp.loop.records import RunDir, write_json
+from heapgrasp.loop.summary import summarize
+from heapgrasp.perception.frames import Capture, Frame
+from heapgrasp.real.recording import RecordingArm
+from heapgrasp.real.setup import load, make_segmenter, real_pipeline
+from heapgrasp.robot.config import RobotConfig
+from heapgrasp.robot.errors import RobotConfigError, RobotError
+from heapgrasp.robot.grasping import PREGRASP_DISTANCE, translate
+from heapgrasp.robot.hardware import Drivers, HardwareRobot
+from heapgrasp.robot.interfaces import Contact, UnreachableError
+from heapgrasp.robot.ur import URArm, pose_from_rtde
+
+__all__ = ["DryRunArm", "dry_run", "execute", "robot_record"]
+
+F64 = npt.NDArray[np.float64]
+
+ROBOT_FILE = "robot.json"
+DRY_RUN_FILE = "dry_run.json"
+
+
+@dataclass
+class _Robot:
+    arm: Any
+    gripper: Any
+
+
+class DryRunArm:
+    """The arm of a dry run: checks every motion the loop asks for and sends none.
+
+    :meth:`look` and :meth:`follow` return the frame the camera sees where the arm
+    stands (a follow returns it twice: the loop carves the frames after the first, and
+    reads where the camera ended from the last)."""
+
+    def __init__(self, arm: URArm) -> None:
+        self.arm = arm
+        self.checks: list[dict[str, Any]] = []
+
+    @property
+    def camera(self) -> Any:
+        return self.arm.camera
+
+    @property
+    def clock(self) -> float:
+        return self.arm.clock
+
+    @property
+    def tcp(self) -> F64:
+        return self.arm.tcp
+
+    def _log(self, kind: str, ok: bool, detail: str = "", **extra: Any) -> None:
+        self.checks.append({"motion": kind, "ok": ok, "detail": detail, **extra})
+
+    def check_pose(self, kind: str, tcp: F64, *, straight_from_here: bool = False) -> bool:
+        """Checks a TCP pose (and the straight move there) against the box and reach."""
+        try:
+            poses = self.arm._segment(self.arm.tcp, tcp) if straight_from_here else tcp
+            self.arm._check_poses(poses)
+            self.arm._reachable(tcp)
+        except UnreachableError as exc:
+            self._log(kind, False, str(exc), position=tcp[:3, 3].tolist())
+            return False
+        self._log(kind, True, position=tcp[:3, 3].tolist())
+        return True
+
+    def park(self) -> None:
+        q = list(self.arm.config.arm.park)
+        fk = self.arm._call("forward kinematics", self.arm.control.getForwardKinematics, q)
+        self.check_pose("park", self.arm.base2world @ pose_from_rtde(fk))
+
+    def _here(self) -> Frame:
+        return self.arm._still_frame()
+
+    def look(self, cam2world: F64) -> Frame:
+        tcp = cam2world @ np.linalg.inv(self.arm.cam2tcp)
+        if not self.check_pose("look", tcp, straight_from_here=True):
+            raise UnreachableError(self.checks[-1]["detail"])
+        return self._here()
+
+    def follow(self, path: TimedPath) -> Capture:
+        try:
+            times, _, slowed = self.arm.plan_path(path)
+        except UnreachableError as exc:
+            self._log("path", False, str(exc), end=path.poses[-1][:3, 3].tolist())
+            raise
+        self._log(
+            "path",
+            True,
+            end=path.poses[-1][:3, 3].tolist(),
+            duration_s=path.duration * slowed,
+            slowdown=slowed,
+            samples=len(times),
+        )
+        frame = self._here()
+        return Capture(np.array([frame.time, frame.time]), [frame, frame], duration=0.0)
+
+    def move_to(self, tcp: F64, *, opening: float) -> None:
+        raise RobotError("a dry run never moves (move_to)")
+
+    def move_linear(self, tcp: F64, *, speed: float = 0.1, stop_on_contact: bool = False) -> bool:
+        raise RobotError("a dry run never moves (move_linear)")
+
+    def contact(self) -> Contact | None:
+        return None
+
+
+def _viz(out: Path, config: RunConfig) -> Any:
+    """A Rerun recorder of the phase where rerun-sdk is installed; else None."""
+    try:
+        from heapgrasp.geometry.grid import GridFrame
+        from heapgrasp.viz.recorder import RerunRecorder
+
+        grid = GridFrame((0.0, 0.0, 0.0), config.cube_size, config.resolution)
+        return RerunRecorder(out / "dry_run.rrd", grid, config.lam, name="dry-run")
+    except ImportError:
+        return None
+
+
+def dry_run(
+    config_path: str | Path, out: str | Path, *, drivers: Drivers | None = None, viz: bool = True
+) -> dict[str, Any]:
+    """Plans one phase on the robot without moving it (see the module docstring) and
+    returns what ``dry_run.json`` holds."""
+    robot_cfg, cfg = load(config_path)
+    segmenter = make_segmenter(cfg)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    recorder = _viz(out, cfg) if viz else None
+    t0 = time.perf_counter()
+    with HardwareRobot.connect(robot_cfg, drivers, activate=False) as hw:
+        dry = DryRunArm(hw.arm)
+        rec = RecordingArm(dry, out / "frames", 0)
+        robot = _Robot(rec, hw.gripper)
+        pipeline = real_pipeline(cfg, robot, segmenter=segmenter, observer=recorder)
+        rec.begin_phase()
+        stopped: str | None = None
+        plan: PlanResult | None = None
+        try:
+            plan = pipeline.plan()
+        except UnreachableError as exc:  # the first look is refused: nothing to plan from
+            stopped = str(exc)
+        finally:
+            if recorder is not None:
+                recorder.close()
+        grasp: dict[str, Any] | None = None
+        if plan is not None and plan.grasp is not None:
+            pose = plan.grasp.pose
+            pre = pose @ translate(0.0, 0.0, -PREGRASP_DISTANCE)
+            dry.check_pose("pregrasp", pre)
+            dry.check_pose("grasp", pose)
+            dry.check_pose("bin", robot_cfg.workspace.bin_pose())
+            grasp = {"pose": pose.tolist(), "width": plan.grasp.width}
+        sent = hw.arm.commands
+    result = {
+        "moved": sent > 0,
+        "motion_commands_sent": sent,
+        "config": str(config_path),
+        "method": cfg.method,
+        "grasp": grasp,
+        "checks": dry.checks,
+        "refused": [c for c in dry.checks if not c["ok"]],
+        "frames": len(rec.saved),
+        "stopped": stopped,
+        "waypoints": [] if plan is None else plan.extra.get("waypoints", []),
+        "target_grasp": None if plan is None else plan.extra.get("target_grasp"),
+        "wall_time_s": time.perf_counter() - t0,
+        "rerun": str(out / "dry_run.rrd") if recorder is not None else None,
+    }
+    write_json(out / DRY_RUN_FILE, _plain(result))
+    return result
+
+
+def _plain(data: Any) -> Any:
+    """``data`` with numpy values as plain Python (JSON-ready)."""
+    return json.loads(json.dumps(data, default=lambda o: np.asarray(o).tolist()))
+
+
+def robot_record(robot: RobotConfig) -> dict[str, Any]:
+    """The robot config as plain data (``robot.json``)."""
+    data = dataclasses.asdict(robot)
+    return _plain(data)  # type: ignore[no-any-return]
+
+
+@dataclass
+class _Planned:
+    """What the phases planned so far (kept if the run stops half-way)."""
+
+    phases: list[dict[str, Any]] = field(default_factory=list)
+
+    def add(self, plan: PlanResult) -> None:
+        g = plan.grasp
+        self.phases.append(
+            {
+                "grasp_position": None if g is None else g.pose[:3, 3].tolist(),
+                "outcome": None,
+                "camera_path": np.asarray(plan.camera_positions).tolist(),
+                **_plain(plan.extra),
+            }
+        )
+
+
+def execute(
+    config_path: str | Path,
+    out: str | Path,
+    *,
+    objects: int,
+    resume: bool = False,
+    drivers: Drivers | None = None,
+) -> dict[str, Any]:
+    """Runs the clutter-removal protocol on the robot and returns the run's record
+    (see the module docstring). Raises the :class:`RobotError` that stopped it, after
+    writing the record."""
+    if objects < 1:
+        raise RobotConfigError(f"--objects must be at least 1, got {objects}")
+    robot_cfg, cfg = load(config_path)
+    segmenter = make_segmenter(cfg)
+    rundir = RunDir(out)
+    rundir.path.mkdir(parents=True, exist_ok=True)
+    with rundir:
+        saved = rundir.read_config()
+        records = rundir.records()
+        if records and not resume:
+            raise RobotConfigError(
+                f"{rundir.path} already holds {len(records)} run(s); pass --resume to add "
+                "one, or choose another --out"
+            )
+        if resume and saved is not None and saved != cfg:
+            raise RobotConfigError(
+                f"--resume: the settings differ from {rundir.config_file} ({saved.changes_to(cfg)})"
+            )
+        rundir.write_config(cfg)
+        write_json(rundir.path / ROBOT_FILE, robot_record(robot_cfg))
+        scene = len(records)
+        planned = _Planned()
+        t0 = time.perf_counter()
+        record: dict[str, Any] = {
+            "scene": scene,
+            "seed": None,
+            "category": "real",
+            "objects_requested": objects,
+            "objects_total": objects,
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        }
+        failure: BaseException | None = None
+        try:
+            with HardwareRobot.connect(robot_cfg, drivers) as hw:
+                rec = RecordingArm(hw.arm, rundir.path / "frames", scene)
+                robot = _Robot(rec, hw.gripper)
+                pipeline = real_pipeline(cfg, robot, segmenter=segmenter)
+
+                def plan() -> PlanResult:
+                    rec.begin_phase()
+                    result = pipeline.plan()
+                    planned.add(result)
+                    return result
+
+                def outcome(grasp: Any, result: Any) -> None:
+                    planned.phases[-1]["outcome"] = str(result)
+                    pipeline.record_outcome(grasp, result)
+
+                phases, reason = run_clutter_removal(
+                    robot,
+                    plan,
+                    max_attempts=cfg.max_attempts,
+                    on_outcome=outcome,
+                    bin_pose=robot_cfg.workspace.bin_pose(),
+                )
+                record.update(
+                    stop_reason=reason.value,
+                    phases=[p.to_dict() for p in phases],
+                    motion_commands=hw.arm.commands,
+                    path_slowdowns=hw.arm.slowdowns,
+                )
+        except (RobotError, KeyboardInterrupt) as exc:
+            failure = exc
+            record["error"] = f"{type(exc).__name__}: {exc}"
+            record["phases_planned"] = planned.phases
+        record["wall_time_s"] = time.perf_counter() - t0
+        record["frames_dir"] = f"frames/scene_{scene:03d}"
+        rundir.append(_plain(record))
+        write_json(rundir.results_file, _plain(summarize(cfg, rundir.records())))
+    if failure is not None:
+        raise failure
+    return record

@@ -1,0 +1,129 @@
+"""``robot.toml`` → the loop's settings, its segmenter, and the pipeline on hardware.
+
+:func:`run_config` is the :class:`~heapgrasp.loop.config.RunConfig` a real run uses:
+the defaults, ``[method]``, the files of ``[networks]`` (relative to ``robot.toml``) and
+the camera's frame rate, then checked against what a real robot has:
+
+* no scene truth: the oracle view planner and the simulator's segmenters are refused
+  (the silhouette methods need ``[networks] segmentation``);
+* the ``vgn`` baseline needs ``[camera] depth = true``;
+* the camera paths' speed and acceleration (``max_velocity``, ``max_acceleration``) may
+  not exceed ``[limits]`` (the arm would refuse every path).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.phase import Pipeline, build_pipeline
+from heapgrasp.loop.phase import make_segmenter as loop_segmenter
+from heapgrasp.perception.segmenters import Segmenter
+from heapgrasp.robot.config import RobotConfig
+from heapgrasp.robot.errors import RobotConfigError
+from heapgrasp.robot.interfaces import Robot
+
+__all__ = ["load", "make_segmenter", "real_pipeline", "run_config"]
+
+
+def run_config(robot: RobotConfig) -> RunConfig:
+    """The loop's settings for ``robot`` (see the module docstring); every problem is a
+    :class:`RobotConfigError` naming the file and the key."""
+    src = robot.source
+    base = Path(src).parent if src.endswith(".toml") else Path.cwd()
+    changes: dict[str, Any] = dict(robot.method)
+    files = {
+        "seg_weights": robot.networks.segmentation,
+        "view_weights": robot.networks.view,
+        "grasp_weights": robot.networks.grasp,
+    }
+    for key, value in files.items():
+        if not value:
+            continue
+        if key in changes:
+            raise RobotConfigError(f"{src}: [method] {key} and [networks] both name a file")
+        p = Path(value).expanduser()
+        changes[key] = str(p if p.is_absolute() else base / p)
+    if robot.networks.segmentation:
+        changes.setdefault("segmenter", "network")
+    changes.setdefault("fps", float(robot.camera.fps))
+    try:
+        cfg = RunConfig().replace(changes, source=f"{src} [method]")
+    except ConfigError as exc:
+        raise RobotConfigError(str(exc)) from None
+    if cfg.method == "heapgrasp" and cfg.view_planner == "oracle":
+        raise RobotConfigError(
+            f"{src}: [method] view_planner = 'oracle' scores views on the true meshes, which "
+            "only the simulator has; use 'network', 'circle' or 'hemisphere6'"
+        )
+    if cfg.method == "vgn":
+        if not robot.camera.depth:
+            raise RobotConfigError(
+                f"{src}: the vgn baseline needs depth: set [camera] depth = true"
+            )
+    elif cfg.segmenter != "network":
+        raise RobotConfigError(
+            f"{src}: a real camera's frames are segmented by the network: set [networks] "
+            "segmentation to the ONNX file `heapgrasp seg train` wrote"
+        )
+    lim = robot.limits
+    if cfg.max_velocity > lim.tool_speed:
+        raise RobotConfigError(
+            f"{src}: [method] max_velocity {cfg.max_velocity} m/s is above [limits] "
+            f"tool_speed {lim.tool_speed}: the arm would refuse every camera path"
+        )
+    if cfg.max_acceleration > lim.tool_acceleration:
+        raise RobotConfigError(
+            f"{src}: [method] max_acceleration {cfg.max_acceleration} m/s² is above [limits] "
+            f"tool_acceleration {lim.tool_acceleration}"
+        )
+    if cfg.mount != "free" or cfg.noise > 0:
+        raise RobotConfigError(
+            f"{src}: [method] mount and noise are the simulator's settings; leave them out"
+        )
+    return cfg
+
+
+def load(path: str | Path) -> tuple[RobotConfig, RunConfig]:
+    """Reads ``robot.toml`` and derives the loop's settings; both checked whole."""
+    robot = RobotConfig.load(path)
+    used = robot.calibration.report.get("tcp")
+    if used is not None and list(used) != list(robot.arm.tcp):
+        raise RobotConfigError(
+            f"{robot.source}: [calibration] was measured with the TCP {list(used)}, but [arm] "
+            f"tcp is {list(robot.arm.tcp)}: calibrate again (heapgrasp robot calibrate)"
+        )
+    return robot, run_config(robot)
+
+
+def make_segmenter(config: RunConfig) -> Segmenter | None:
+    """The segmentation network of ``config`` (None for the depth baseline)."""
+    if config.method == "vgn":
+        return None
+    try:
+        return loop_segmenter(config, None)
+    except ConfigError as exc:
+        raise RobotConfigError(f"[networks] segmentation: {exc}") from None
+
+
+class _NoSegmenter:
+    """The depth baseline segments nothing."""
+
+    name = "none"
+
+    def segment(self, frame: Any) -> Any:
+        raise AssertionError("the vgn baseline does not segment")
+
+
+def real_pipeline(
+    config: RunConfig, robot: Robot, *, segmenter: Segmenter | None = None, observer: Any = None
+) -> Pipeline:
+    """The loop's pipeline on a real (or replayed) robot: no scene truth."""
+    seg = segmenter if segmenter is not None else make_segmenter(config)
+    try:
+        return build_pipeline(
+            config, robot, segmenter=seg if seg is not None else _NoSegmenter(), observer=observer
+        )
+    except ConfigError as exc:
+        raise RobotConfigError(str(exc)) from None

@@ -1,0 +1,255 @@
+"""``heapgrasp robot run`` (dry and executed), ``replay``, ``check`` and ``calibrate`` on
+the whole robot faked (``fake_hardware``): a UR controller, a Robotiq URCap server on
+127.0.0.1 and a camera rendering boxes, with a segmentation network file."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fake_hardware import CAM2TCP, WORLD2BASE, Rig, SceneCamera, make_rig, robot_toml
+from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
+from fake_ur import set_world_pose
+from heapgrasp.cli import main
+from heapgrasp.cli.robot import ROBOT_TOML
+from heapgrasp.geometry.camera import CameraSpec
+from heapgrasp.geometry.gripper import ROBOTIQ_2F140
+from heapgrasp.loop.phase import build_pipeline
+from heapgrasp.loop.protocol import run_clutter_removal
+from heapgrasp.real.calibrate import calibrate_robot, world_in_board
+from heapgrasp.real.check import check
+from heapgrasp.real.replay import replay
+from heapgrasp.real.session import dry_run, execute
+from heapgrasp.real.setup import load
+from heapgrasp.robot.calibration import CharucoBoard, render_board
+from heapgrasp.robot.config import RobotConfig
+from heapgrasp.robot.errors import ProtectiveStop, RobotConfigError
+
+METHOD = {"L": 2}
+
+
+@pytest.fixture
+def rig() -> Rig:
+    r = make_rig()
+    yield r
+    r.server.close()
+
+
+def test_a_dry_run_checks_every_motion_and_sends_none(rig: Rig, tmp_path: Path) -> None:
+    cfg = robot_toml(tmp_path, method=METHOD)
+    result = dry_run(cfg, tmp_path / "dry", drivers=rig.drivers(), viz=False)
+    assert rig.motions() == []  # the arm got no motion command
+    assert not [c for c in rig.server.sent() if c.startswith("SET")]  # the gripper none
+    assert result["motion_commands_sent"] == 0 and not result["moved"]
+    kinds = [c["motion"] for c in result["checks"]]
+    assert kinds[:2] == ["park", "look"] and kinds.count("path") == METHOD["L"]
+    assert all(c["ok"] for c in result["checks"])
+    saved = json.loads((tmp_path / "dry" / "dry_run.json").read_text())
+    assert saved["checks"] == result["checks"]
+    assert list((tmp_path / "dry" / "frames" / "scene_000" / "phase_000").glob("*.npz"))
+
+
+def test_a_dry_run_reports_a_view_outside_the_box(rig: Rig, tmp_path: Path) -> None:
+    box = "[workspace]\nmin = [-0.25, -0.55, -0.01]\nmax = [0.55, 0.55, 0.36]\n"
+    cfg = robot_toml(tmp_path, method=METHOD, extra=box)
+    result = dry_run(cfg, tmp_path / "dry", drivers=rig.drivers(), viz=False)
+    assert rig.motions() == []
+    # the parked arm is above the box: the park and the first look are refused, and the
+    # phase cannot start
+    assert [c["motion"] for c in result["refused"]] == ["park", "look"]
+    assert "workspace box" in result["refused"][0]["detail"]
+    assert "workspace box" in result["stopped"]
+
+
+def _fake_robot_run() -> tuple[list[int], dict[int, np.ndarray]]:
+    """The same scene and settings on the seam's fake robot (the simulator's role):
+    which boxes it picked and where it grasped each."""
+    from fake_hardware import BOXES
+
+    scene = FakeScene(BOXES)
+    robot = FakeRobot(scene)
+    robot.gripper.geometry = ROBOTIQ_2F140
+    truth = FakeTruth(scene, robot)
+    pipeline = build_pipeline(load_settings(), robot, segmenter=RedSegmenter(), truth=truth)
+    phases, _ = run_clutter_removal(
+        robot, pipeline.plan, truth=truth, on_outcome=pipeline.record_outcome
+    )
+    grasps = {p.object_id: p.grasp_position for p in phases if p.outcome == "success"}
+    return truth.placed_ids, grasps  # type: ignore[return-value]
+
+
+def load_settings():  # type: ignore[no-untyped-def]
+    from heapgrasp.loop.config import RunConfig
+
+    return RunConfig().replace(METHOD)
+
+
+def test_an_executed_run_clears_the_scene_as_the_fake_robot_does(rig: Rig, tmp_path: Path) -> None:
+    cfg = robot_toml(tmp_path, method=METHOD)
+    out = tmp_path / "run"
+    record = execute(cfg, out, objects=2, drivers=rig.drivers())
+    outcomes = [p["outcome"] for p in record["phases"]]
+    assert outcomes.count("success") == 2 and record["stop_reason"] == "no_candidate"
+    assert not rig.scene.ids  # both boxes were carried to the bin
+    fake_picked, fake_grasps = _fake_robot_run()
+    assert sorted(rig.picked) == sorted(fake_picked)  # the same boxes
+    ours = [np.asarray(p["grasp_position"]) for p in record["phases"] if p["outcome"] == "success"]
+    for box, pos in zip(rig.picked, ours, strict=True):
+        assert np.linalg.norm(pos - fake_grasps[box]) <= 0.03
+    # the simulator's files, and every frame
+    for name in ("config.json", "scenes.jsonl", "results.json", "robot.json"):
+        assert (out / name).is_file()
+    results = json.loads((out / "results.json").read_text())
+    assert results["grasps_succeeded"] == 2 and results["objects_total"] == 2
+    frames = sorted((out / "frames" / "scene_000").glob("phase_*/*.npz"))
+    assert len(frames) >= 3 * (1 + METHOD["L"]) - METHOD["L"]
+    # a second run without --resume is refused, with it appended
+    with pytest.raises(RobotConfigError, match="--resume"):
+        execute(cfg, out, objects=1, drivers=rig.drivers())
+
+
+def test_a_protective_stop_stops_the_run_and_keeps_the_record(rig: Rig, tmp_path: Path) -> None:
+    cfg = robot_toml(tmp_path, method=METHOD)
+    out = tmp_path / "run"
+    rig.ctl.protective_on = ("moveL", 3)  # in the first grasp's moves
+    with pytest.raises(ProtectiveStop):
+        execute(cfg, out, objects=2, drivers=rig.drivers())
+    (record,) = [json.loads(line) for line in (out / "scenes.jsonl").read_text().splitlines()]
+    assert "ProtectiveStop" in record["error"]
+    assert record["phases_planned"]  # what was planned before the stop
+    assert list((out / "frames" / "scene_000").glob("phase_*/*.npz"))
+    results = json.loads((out / "results.json").read_text())
+    assert results["scenes_failed"][0]["error"].startswith("ProtectiveStop")
+    # the arm was told to stop, and the gripper's socket closed
+    assert "servoStop" in rig.ctl.names() or "stopL" in rig.ctl.names()
+    assert not rig.grippers[-1].connected
+
+
+def test_replay_plans_the_recorded_phases_again(rig: Rig, tmp_path: Path) -> None:
+    cfg = robot_toml(tmp_path, method=METHOD)
+    out = tmp_path / "run"
+    record = execute(cfg, out, objects=2, drivers=rig.drivers())
+    same = replay(out)
+    assert same["phases_replayed"] == len(record["phases"])
+    for row, phase in zip(same["phases"], record["phases"], strict=True):
+        assert row["recorded_outcome"] == phase["outcome"]
+        if phase["grasp_position"] is not None:
+            assert row["grasp_moved_m"] == pytest.approx(0.0, abs=1e-9)
+    assert (out / "replay.json").is_file()
+    changed = replay(out, {"lam": 0.5, "roof_radius": 0.0}, out=tmp_path / "r.json")
+    assert "lam: 0.9 -> 0.5" in changed["changes"]
+    assert changed["phases_replayed"] == len(record["phases"])
+    assert main(["replay", str(out), "--set", "lam=0.7", "--out", str(tmp_path / "c.json")]) == 0
+    assert main(["replay", str(out), "--set", "lamb=0.7"]) == 2  # a typo is named
+
+
+def test_check_reports_every_device(rig: Rig, tmp_path: Path) -> None:
+    cfg = robot_toml(tmp_path, method=METHOD)
+    items = {i["item"]: i for i in check(cfg, drivers=rig.drivers())}
+    assert all(i["ok"] for i in items.values()), items
+    assert "inside the box" in items["arm"]["detail"]
+    assert rig.motions() == []
+    rig.server.close()
+    items = {i["item"]: i for i in check(cfg, drivers=rig.drivers())}
+    assert not items["gripper"]["ok"] and "ConnectionLost" in items["gripper"]["detail"]
+    assert items["arm"]["ok"] and items["camera"]["ok"]
+
+
+def test_the_settings_a_real_robot_cannot_have_are_refused(tmp_path: Path) -> None:
+    with pytest.raises(RobotConfigError, match="segmentation"):
+        load(robot_toml(tmp_path, network=False))
+    with pytest.raises(RobotConfigError, match="oracle"):
+        load(robot_toml(tmp_path, method={"view_planner": "oracle"}))
+    with pytest.raises(RobotConfigError, match="tool_speed"):
+        load(robot_toml(tmp_path, method={"max_velocity": 0.5}))
+    with pytest.raises(RobotConfigError, match="depth"):
+        load(robot_toml(tmp_path, method={"method": "vgn"}))
+    with pytest.raises(RobotConfigError, match="unknown parameter 'lamda'"):
+        load(robot_toml(tmp_path, method={"lamda": 0.5}))
+
+
+def test_robot_init_writes_a_template_that_loads(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "robot.toml"
+    assert main(["robot", "init", str(path)]) == 0
+    assert path.read_text() == ROBOT_TOML
+    config = RobotConfig.load(path)
+    assert config.arm.host == "192.168.1.10" and not config.calibration.done
+    assert main(["robot", "init", str(path)]) == 2  # never overwritten silently
+    # a run on it names what is missing before touching any device
+    assert main(["robot", "run", "--config", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "segmentation" in capsys.readouterr().err
+
+
+class BoardCamera(SceneCamera):
+    """The rig's camera looking at a ChArUco board lying where the workspace is."""
+
+    def __init__(self, rig: Rig, board: CharucoBoard, spec: CameraSpec) -> None:
+        super().__init__(rig.ctl, rig.scene, spec)
+        board2world = np.linalg.inv(world_in_board(board))
+
+        def render(cam2world: np.ndarray) -> np.ndarray:
+            grey = render_board(board, spec, np.linalg.inv(cam2world) @ board2world, noise=1.0)
+            return np.repeat(grey[..., None], 3, axis=2)
+
+        self.render = render
+
+
+def test_calibration_on_the_arm_recovers_the_extrinsic(rig: Rig, tmp_path: Path) -> None:
+    board = CharucoBoard()
+    rig.camera = BoardCamera(rig, board, CameraSpec.still())
+    # the operator jogged the arm so the camera looks down at the board from 0.42 m
+    centre = np.linalg.inv(world_in_board(board)) @ np.r_[board.center, 1.0]
+    cam = np.diag([1.0, -1.0, -1.0, 1.0])
+    cam[:3, 3] = centre[:3] + np.array([0.0, 0.0, 0.42])
+    set_world_pose(rig.ctl, WORLD2BASE, cam @ np.linalg.inv(CAM2TCP))
+    path = robot_toml(tmp_path, method=METHOD)
+    text = path.read_text()
+    start = text.index("[calibration]")
+    end = text.index("[networks]")
+    path.write_text(text[:start] + text[end:])  # not calibrated yet
+    before = path.read_text()
+    plan = calibrate_robot(path, tmp_path / "cal", drivers=rig.drivers())
+    assert not plan["executed"] and rig.motions() == [] and path.read_text() == before
+    assert all(c["ok"] for c in plan["checks"])
+    report = calibrate_robot(path, tmp_path / "cal", drivers=rig.drivers(), execute=True)
+    assert report["detected"] == report["images"] >= 12
+    written = RobotConfig.load(path)
+    assert (tmp_path / "robot.toml.bak").read_text() == before
+    assert written.calibration.done
+    err_mm = 1000 * np.linalg.norm(written.calibration.cam2tcp[:3, 3] - CAM2TCP[:3, 3])
+    rel = written.calibration.cam2tcp[:3, :3].T @ CAM2TCP[:3, :3]
+    err_deg = math.degrees(math.acos(min(1.0, (np.trace(rel) - 1) / 2)))
+    assert err_mm <= 1.0 and err_deg <= 0.1, (err_mm, err_deg)
+    assert np.abs(written.calibration.world2base - WORLD2BASE)[:3, 3].max() <= 0.002
+    assert "[networks]" in path.read_text()  # the rest of the file is kept
+    load(path)  # and the run settings still load
+
+
+def test_calibrate_synthetic_rehearsal_runs_from_the_command_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["robot", "calibrate", "--synthetic", "--out", str(tmp_path), "--poses", "10"]) == 0
+    report = json.loads((tmp_path / "calibration.json").read_text())
+    assert report["recovery_error_mm"] <= 1.0 and report["recovery_error_deg"] <= 0.1
+    assert "recovered to" in capsys.readouterr().out
+
+
+def test_robot_board_writes_a_printable_board_the_detector_finds(tmp_path: Path) -> None:
+    import cv2
+
+    path = tmp_path / "board.png"
+    assert main(["robot", "board", str(path), "--dpi", "100"]) == 0
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    board = CharucoBoard()
+    per_square = round(board.square / 0.0254 * 100)
+    assert image.shape == (
+        board.squares_y * per_square + 2 * (per_square // 2),
+        board.squares_x * per_square + 2 * (per_square // 2),
+    )
+    _, ids, _, _ = cv2.aruco.CharucoDetector(board.cv()).detectBoard(image)
+    assert ids is not None and len(ids) == (board.squares_x - 1) * (board.squares_y - 1)
