@@ -30,7 +30,14 @@ from heapgrasp.geometry.motion import TimedPath
 from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.robot.interfaces import Arm, Contact
 
-__all__ = ["Recorded", "RecordingArm", "load_phase", "phase_dirs", "save_frames"]
+__all__ = [
+    "ArmWrapper",
+    "Recorded",
+    "RecordingArm",
+    "load_phase",
+    "phase_dirs",
+    "save_frames",
+]
 
 F64 = npt.NDArray[np.float64]
 
@@ -113,13 +120,53 @@ def load_phase(phase_dir: Path) -> list[Recorded]:
     return [_load(p) for p in sorted(phase_dir.glob("*.npz"))]
 
 
-class RecordingArm:
-    """An :class:`~heapgrasp.robot.interfaces.Arm` that saves every frame it returns
-    (:func:`save_frames`) under ``frames_dir/scene_SSS/phase_PPP/``; call
-    :meth:`begin_phase` before each phase."""
+class ArmWrapper:
+    """An :class:`~heapgrasp.robot.interfaces.Arm` that hands every call to ``arm``;
+    subclasses change what they need (:class:`RecordingArm`, the dry run's arm)."""
 
-    def __init__(self, arm: Arm, frames_dir: Path, scene: int) -> None:
+    def __init__(self, arm: Any) -> None:
         self.arm = arm
+
+    @property
+    def camera(self) -> Any:
+        return self.arm.camera
+
+    @property
+    def clock(self) -> float:
+        return float(self.arm.clock)
+
+    @property
+    def tcp(self) -> F64:
+        return np.asarray(self.arm.tcp, dtype=np.float64)
+
+    def park(self) -> None:
+        self.arm.park()
+
+    def look(self, cam2world: F64) -> Frame:
+        frame: Frame = self.arm.look(cam2world)
+        return frame
+
+    def follow(self, path: TimedPath) -> Capture:
+        cap: Capture = self.arm.follow(path)
+        return cap
+
+    def move_to(self, tcp: F64, *, opening: float) -> None:
+        self.arm.move_to(tcp, opening=opening)
+
+    def move_linear(self, tcp: F64, *, speed: float = 0.1, stop_on_contact: bool = False) -> bool:
+        return bool(self.arm.move_linear(tcp, speed=speed, stop_on_contact=stop_on_contact))
+
+    def contact(self) -> Contact | None:
+        touching: Contact | None = self.arm.contact()
+        return touching
+
+
+class RecordingArm(ArmWrapper):
+    """An arm that saves every frame it returns (:func:`save_frames`) under
+    ``frames_dir/scene_SSS/phase_PPP/``; call :meth:`begin_phase` before each phase."""
+
+    def __init__(self, arm: Arm | ArmWrapper, frames_dir: Path, scene: int) -> None:
+        super().__init__(arm)
         self.frames_dir = frames_dir
         self.scene = scene
         self.phase = -1
@@ -137,43 +184,19 @@ class RecordingArm:
         self._count += 1
         return self.frames_dir / name
 
-    @property
-    def camera(self) -> Any:
-        return self.arm.camera
-
-    @property
-    def clock(self) -> float:
-        return self.arm.clock
-
-    @property
-    def tcp(self) -> F64:
-        return self.arm.tcp
-
-    def park(self) -> None:
-        self.arm.park()
-
     def look(self, cam2world: F64) -> Frame:
-        frame = self.arm.look(cam2world)
+        frame = super().look(cam2world)
         path = self._path("look")
         save_frames(path, [frame], "look", 0.0)
         self.saved.append(path)
         return frame
 
     def follow(self, path: TimedPath) -> Capture:
-        cap = self.arm.follow(path)
+        cap = super().follow(path)
         out = self._path("follow")
         save_frames(out, cap.frames, "follow", cap.duration)
         self.saved.append(out)
         return cap
-
-    def move_to(self, tcp: F64, *, opening: float) -> None:
-        self.arm.move_to(tcp, opening=opening)
-
-    def move_linear(self, tcp: F64, *, speed: float = 0.1, stop_on_contact: bool = False) -> bool:
-        return self.arm.move_linear(tcp, speed=speed, stop_on_contact=stop_on_contact)
-
-    def contact(self) -> Contact | None:
-        return self.arm.contact()
 
 
 def spec_dict(spec: CameraSpec) -> dict[str, Any]:

@@ -37,7 +37,7 @@ from heapgrasp.loop.protocol import PlanResult, run_clutter_removal
 from heapgrasp.loop.records import RunDir, write_json
 from heapgrasp.loop.summary import summarize
 from heapgrasp.perception.frames import Capture, Frame
-from heapgrasp.real.recording import RecordingArm
+from heapgrasp.real.recording import ArmWrapper, RecordingArm
 from heapgrasp.real.setup import load, make_segmenter, real_pipeline
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.errors import RobotConfigError, RobotError
@@ -60,7 +60,7 @@ class _Robot:
     gripper: Any
 
 
-class DryRunArm:
+class DryRunArm(ArmWrapper):
     """The arm of a dry run: checks every motion the loop asks for and sends none.
 
     :meth:`look` and :meth:`follow` return the frame the camera sees where the arm
@@ -68,20 +68,9 @@ class DryRunArm:
     reads where the camera ended from the last)."""
 
     def __init__(self, arm: URArm) -> None:
-        self.arm = arm
+        super().__init__(arm)
+        self.arm: URArm = arm
         self.checks: list[dict[str, Any]] = []
-
-    @property
-    def camera(self) -> Any:
-        return self.arm.camera
-
-    @property
-    def clock(self) -> float:
-        return self.arm.clock
-
-    @property
-    def tcp(self) -> F64:
-        return self.arm.tcp
 
     def _log(self, kind: str, ok: bool, detail: str = "", **extra: Any) -> None:
         self.checks.append({"motion": kind, "ok": ok, "detail": detail, **extra})
