@@ -19,7 +19,7 @@ from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.gripper import ROBOTIQ_2F140
 from heapgrasp.loop.phase import build_pipeline
 from heapgrasp.loop.protocol import run_clutter_removal
-from heapgrasp.real.calibrate import calibrate_robot, world_in_board
+from heapgrasp.real.calibrate import calibrate_robot, read_taught, world_in_board
 from heapgrasp.real.check import check
 from heapgrasp.real.replay import replay
 from heapgrasp.real.session import dry_run, execute
@@ -228,6 +228,20 @@ def test_calibration_on_the_arm_recovers_the_extrinsic(rig: Rig, tmp_path: Path)
     assert np.abs(written.calibration.world2base - WORLD2BASE)[:3, 3].max() <= 0.002
     assert "[networks]" in path.read_text()  # the rest of the file is kept
     load(path)  # and the run settings still load
+    # taught poses instead of generated ones: the first 8 reached, as the pendant shows them
+    taught = tmp_path / "taught.json"
+    visited = [a[0] for n, a in rig.ctl.log if n == "moveL"][:8]
+    taught.write_text(json.dumps(visited))
+    again = calibrate_robot(
+        path, tmp_path / "cal2", drivers=rig.drivers(), execute=True, taught=read_taught(taught)
+    )
+    assert again["poses"] == 8 and again["detected"] == 8
+    taught.write_text("[[0, 0, 0.3, 0, 0]]")
+    with pytest.raises(RobotConfigError, match="at least 3 poses"):
+        read_taught(taught)
+    taught.write_text(json.dumps([[0, 0, 0.3, 0, 0, 0]] * 2 + [[0, 0, "x", 0, 0, 0]]))
+    with pytest.raises(RobotConfigError, match="entry 2 must be"):
+        read_taught(taught)
 
 
 def test_calibrate_synthetic_rehearsal_runs_from_the_command_line(

@@ -154,7 +154,7 @@ def _print_dry_run(result: dict[str, Any], out: Path) -> None:
 
 
 def _calibrate(args: argparse.Namespace) -> int:
-    from heapgrasp.real.calibrate import calibrate_robot, rehearse
+    from heapgrasp.real.calibrate import calibrate_robot, read_taught, rehearse
     from heapgrasp.robot.errors import RobotError
 
     try:
@@ -169,8 +169,14 @@ def _calibrate(args: argparse.Namespace) -> int:
         if args.config is None:
             print("heapgrasp: error: --config is required (or --synthetic)", file=sys.stderr)
             return 2
+        taught = read_taught(args.taught) if args.taught else None
         report = calibrate_robot(
-            args.config, args.out, poses=args.poses, execute=args.execute, seed=args.seed
+            args.config,
+            args.out,
+            poses=args.poses,
+            execute=args.execute,
+            seed=args.seed,
+            taught=taught,
         )
     except (RobotError, ValueError) as exc:
         return _robot_error(exc)
@@ -311,6 +317,12 @@ def add_parser(
     cal.add_argument("--execute", action="store_true", help="move the arm and calibrate")
     cal.add_argument("--synthetic", action="store_true", help="rehearse on rendered images")
     cal.add_argument("--seed", type=int, default=0, help="seed of the generated poses")
+    cal.add_argument(
+        "--taught",
+        metavar="FILE",
+        help="visit these TCP poses instead of generated ones: a JSON list of [x, y, z, "
+        "rx, ry, rz] in the base frame, as the pendant shows them (m, rotation vector)",
+    )
     cal.set_defaults(func=_calibrate)
 
     brd = sub.add_parser(

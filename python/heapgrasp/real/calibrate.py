@@ -7,9 +7,9 @@ The procedure (``docs/real_robot.md``, "Calibration"):
 2. from that first view the board's place is estimated (through the extrinsic guessed
    in ``[calibration] cam2tcp``, or a camera 10 cm behind the TCP);
 3. :func:`~heapgrasp.robot.calibration.calibration_poses` spreads ``--poses`` TCP poses
-   around the board; a dry run (the default) checks each against the workspace box and
-   the arm's reach and moves nothing; with ``--execute`` the arm visits each, rests,
-   and takes a still frame;
+   around the board (or ``--taught FILE`` lists poses taught on the pendant); a dry run
+   (the default) checks each against the workspace box and the arm's reach and moves
+   nothing; with ``--execute`` the arm visits each, rests, and takes a still frame;
 4. :func:`~heapgrasp.robot.calibration.calibrate` detects the board, runs every method
    of ``cv2.calibrateHandEye`` and keeps the one with the smallest residual;
 5. the result goes into ``robot.toml``'s ``[calibration]`` table (the rest of the file,
@@ -30,6 +30,7 @@ from __future__ import annotations
 import datetime
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -47,13 +48,14 @@ from heapgrasp.robot.calibration import (
     render_board,
 )
 from heapgrasp.robot.config import RobotConfig
-from heapgrasp.robot.errors import DeviceError
+from heapgrasp.robot.errors import DeviceError, RobotConfigError
 from heapgrasp.robot.hardware import Drivers, camera_settings
 from heapgrasp.robot.ur import URArm, pose_from_rtde
 
 __all__ = [
     "DEFAULT_CAM2TCP",
     "calibrate_robot",
+    "read_taught",
     "rehearse",
     "world_in_board",
     "write_calibration",
@@ -64,6 +66,35 @@ F64 = npt.NDArray[np.float64]
 #: The extrinsic guessed where ``[calibration] cam2tcp`` is not set: the camera 10 cm
 #: behind the TCP and 6 cm beside it, looking along the approach.
 DEFAULT_CAM2TCP = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0.06], [0, 0, 1.0, -0.10], [0, 0, 0, 1.0]])
+
+
+def read_taught(path: str | Path) -> list[F64]:
+    """Taught calibration poses from a JSON file: a list of TCP poses in the base frame,
+    each ``[x, y, z, rx, ry, rz]`` as the teach pendant shows them (m, rotation vector),
+    at least 3. Errors name the file and the entry."""
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text())
+    except FileNotFoundError:
+        raise RobotConfigError(f"taught poses: {p} not found") from None
+    except json.JSONDecodeError as exc:
+        raise RobotConfigError(f"taught poses: {p} is not JSON: {exc}") from None
+    if not isinstance(data, list) or len(data) < 3:
+        raise RobotConfigError(f"taught poses: {p} must hold a list of at least 3 poses")
+    out = []
+    for i, entry in enumerate(data):
+        ok = (
+            isinstance(entry, list)
+            and len(entry) == 6
+            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in entry)
+            and all(math.isfinite(v) for v in entry)
+        )
+        if not ok:
+            raise RobotConfigError(
+                f"taught poses: {p} entry {i} must be [x, y, z, rx, ry, rz], got {entry!r}"
+            )
+        out.append(pose_from_rtde(entry))
+    return out
 
 
 def world_in_board(board: CharucoBoard) -> F64:
@@ -173,9 +204,12 @@ def calibrate_robot(
     board: CharucoBoard | None = None,
     drivers: Drivers | None = None,
     seed: int = 0,
+    taught: Sequence[F64] | None = None,
 ) -> dict[str, Any]:
     """Steps 1-5 of the module docstring on the robot; without ``execute`` the poses are
-    generated and checked, nothing moves and nothing is written to ``robot.toml``."""
+    generated and checked, nothing moves and nothing is written to ``robot.toml``.
+    ``taught``: TCP poses (base frame, ``(4, 4)``) to visit instead of generated ones
+    (:func:`read_taught`)."""
     path = Path(config_path)
     config = RobotConfig.load(path)
     board = board or CharucoBoard()
@@ -214,7 +248,11 @@ def calibrate_robot(
             source=config.source,
         )
         arm = URArm(control, receive, camera, provisional, clock=d.clock, sleep=d.sleep)
-        targets = calibration_poses(board2base, guess, n=poses, seed=seed, board=board)
+        targets = (
+            list(taught)
+            if taught is not None
+            else calibration_poses(board2base, guess, n=poses, seed=seed, board=board)
+        )
         checks: list[dict[str, Any]] = []
         for i, tcp_base in enumerate(targets):
             tcp_world = arm.base2world @ tcp_base
