@@ -1,6 +1,7 @@
 """The whole real robot faked: a UR controller (``fake_ur``), a Robotiq URCap server on
-127.0.0.1 (``fake_robotiq``) and a camera rendering a scene of boxes on the controller's
-clock, assembled into :class:`~heapgrasp.robot.hardware.Drivers`, with a ``robot.toml``
+127.0.0.1 (``fake_robotiq``) and the RealSense driver over a fake ``pyrealsense2``
+(``fake_realsense``) rendering a scene of boxes on the controller's clock, assembled
+into :class:`~heapgrasp.robot.hardware.Drivers`, with a ``robot.toml``
 and a tiny segmentation network (a 1 × 1 convolution that calls red pixels opaque) in
 the format ``heapgrasp seg train`` writes. ``test_robot_run.py`` runs ``heapgrasp robot
 run`` (dry and executed), ``replay``, ``check`` and ``calibrate`` on it.
@@ -17,6 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 import onnx
+from fake_realsense import FakeRealSense
 from fake_robot import GREY, RED, FakeScene
 from fake_robotiq import FakeRobotiq
 from fake_ur import (
@@ -39,6 +41,7 @@ from heapgrasp.inference import (
 from heapgrasp.perception.segnet import CLASSES, SEG_KIND
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.hardware import Drivers
+from heapgrasp.robot.realsense import CameraFrame, RealSenseCamera, RealSenseSettings
 from heapgrasp.robot.robotiq import Robotiq2F140
 from heapgrasp.robot.ur import pose_to_rtde
 from onnx import TensorProto, helper
@@ -122,6 +125,39 @@ class SceneCamera(ClockCamera):
         return {"name": "fake camera", "serial": "0000"}
 
 
+class ClockedRealSense(RealSenseCamera):
+    """The RealSense driver over the fake ``pyrealsense2`` (``fake_realsense``), its frames
+    rendered on the fake controller's clock: before the driver reads its queue, every
+    frame due since the last read (one per ``1/fps`` s of controller time) is delivered
+    through the fake pipeline's callback, rendered where the camera is then."""
+
+    def __init__(self, ctl: FakeController, scene: FakeScene) -> None:
+        self.ctl, self.scene = ctl, scene
+        self.fake = FakeRealSense(self._render, clock=lambda: ctl.clock, auto=False)
+        super().__init__(RealSenseSettings(320, 240, 30), rs=self.fake, clock=lambda: ctl.clock)
+        self._due = ctl.clock
+
+    def _render(self, t: float) -> tuple[npt.NDArray[np.uint8], None]:
+        pose = world_pose(self.ctl, WORLD2BASE) @ CAM2TCP
+        labels = self.scene.meshes.render_labels(self.spec.core(), np.ascontiguousarray(pose))
+        return np.where((labels > 0)[..., None], RED, GREY).astype(np.uint8), None
+
+    def _emit_due(self) -> None:
+        if self._due <= self.ctl.clock:
+            self.fake.emit()
+            while self._due <= self.ctl.clock:
+                self._due += 1.0 / 30
+
+    def poll(self) -> list[CameraFrame]:
+        self._emit_due()
+        return super().poll()
+
+    def wait(self, timeout: float | None = None) -> CameraFrame:
+        self.ctl.advance(max(0.0, self._due - self.ctl.clock))
+        self._emit_due()
+        return super().wait(timeout)
+
+
 @dataclass
 class Rig:
     """Everything faked, and what happened to it."""
@@ -129,7 +165,7 @@ class Rig:
     ctl: FakeController
     scene: FakeScene
     server: FakeRobotiq
-    camera: SceneCamera
+    camera: Any
     picked: list[int] = field(default_factory=list)
     grippers: list[Robotiq2F140] = field(default_factory=list)
 
@@ -181,7 +217,7 @@ def make_rig(boxes: list[Any] | None = None) -> Rig:
     set_world_pose(ctl, WORLD2BASE, PARK)
     scene = FakeScene(boxes if boxes is not None else BOXES)
     server = FakeRobotiq().start()
-    return Rig(ctl, scene, server, SceneCamera(ctl, scene))
+    return Rig(ctl, scene, server, ClockedRealSense(ctl, scene))
 
 
 def robot_toml(

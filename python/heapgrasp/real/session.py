@@ -44,7 +44,7 @@ from heapgrasp.robot.errors import RobotConfigError, RobotError
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE, translate
 from heapgrasp.robot.hardware import Drivers, HardwareRobot
 from heapgrasp.robot.interfaces import Contact, UnreachableError
-from heapgrasp.robot.ur import URArm, pose_from_rtde
+from heapgrasp.robot.ur import URArm, continuous_roll, pose_from_rtde
 
 __all__ = ["DryRunArm", "dry_run", "execute", "robot_record"]
 
@@ -96,7 +96,8 @@ class DryRunArm(ArmWrapper):
         return self.arm._still_frame()
 
     def look(self, cam2world: F64) -> Frame:
-        tcp = cam2world @ np.linalg.inv(self.arm.cam2tcp)
+        goal = continuous_roll(np.asarray(cam2world)[None], self.arm.tcp @ self.arm.cam2tcp)[0]
+        tcp = goal @ np.linalg.inv(self.arm.cam2tcp)
         if not self.check_pose("look", tcp, straight_from_here=True):
             raise UnreachableError(self.checks[-1]["detail"])
         return self._here()

@@ -4,8 +4,10 @@
 eq. 8: continuous capture while moving) and runs the grasp sequence of
 :mod:`heapgrasp.robot.grasping`:
 
-* a camera path is sampled at ``[arm] servo_rate``, converted to TCP poses through the
-  hand-eye extrinsic, **checked whole** (:mod:`heapgrasp.robot.safety`: the workspace
+* a camera path is sampled at ``[arm] servo_rate``, turned about the optical axis where
+  the view sphere's look-at poses roll (:func:`continuous_roll`: a silhouette does not
+  depend on the roll), converted to TCP poses through the hand-eye extrinsic, slowed
+  until the TCP keeps the caps, **checked whole** (:mod:`heapgrasp.robot.safety`: the workspace
   box, the speed and acceleration caps, the joint speeds from the controller's inverse
   kinematics) and only then streamed with ``servoL``; the TCP pose is read with a host
   timestamp every cycle;
@@ -62,6 +64,7 @@ __all__ = [
     "StampedFrame",
     "URArm",
     "connect_ur",
+    "continuous_roll",
     "pose_from_rtde",
     "pose_to_rtde",
 ]
@@ -94,6 +97,25 @@ def pose_from_rtde(vector: Sequence[float]) -> F64:
     m[:3, :3] = Rotation.from_rotvec(v[3:]).as_matrix()
     m[:3, 3] = v[:3]
     return m
+
+
+def continuous_roll(cams: F64, start: F64) -> F64:
+    """``cams`` (``(N, 4, 4)`` camera poses) each turned about its optical axis (z) so
+    that every orientation is the nearest to the one before it, the first the nearest to
+    ``start``'s: the same positions and viewing directions, with no roll the wrist need
+    not make. A silhouette does not depend on the roll (the frames record the poses they
+    were taken at); the look-at poses of the view sphere roll half a turn where a path
+    passes over its pole."""
+    out = np.array(cams, dtype=np.float64, copy=True)
+    prev = np.asarray(start, dtype=np.float64)[:3, :3]
+    for i in range(len(out)):
+        r = out[i, :3, :3]
+        m = r.T @ prev
+        psi = math.atan2(m[1, 0] - m[0, 1], m[0, 0] + m[1, 1])
+        c, s = math.cos(psi), math.sin(psi)
+        out[i, :3, :3] = r @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        prev = out[i, :3, :3]
+    return out
 
 
 class StampedFrame(Protocol):
@@ -353,9 +375,12 @@ class URArm:
         return Frame(pose, self._camera.spec, shot.time, shot.rgb, shot.depth)
 
     def look(self, cam2world: F64) -> Frame:
-        """Moves (``moveL``) so the camera is at ``cam2world``, rests, and captures."""
+        """Moves (``moveL``) so the camera is at ``cam2world`` (turned about its optical
+        axis to the roll nearest the camera's now, :func:`continuous_roll`), rests, and
+        captures."""
         lim = self.config.limits
-        self._move_l(cam2world @ np.linalg.inv(self.cam2tcp), lim.tool_speed, lim.tool_acceleration)
+        goal = continuous_roll(np.asarray(cam2world)[None], self.tcp @ self.cam2tcp)[0]
+        self._move_l(goal @ np.linalg.inv(self.cam2tcp), lim.tool_speed, lim.tool_acceleration)
         return self._still_frame()
 
     def _ik(self, tcp: F64, picks: list[int]) -> F64:
@@ -382,6 +407,7 @@ class URArm:
         n = max(2, math.ceil(duration * rate) + 1)
         times = np.linspace(0.0, duration, n) if duration > 0 else np.zeros(1)
         cams = np.stack([path.at(float(t) / slowdown) for t in times])
+        cams = continuous_roll(cams, self.tcp @ self.cam2tcp)
         return times, cams @ np.linalg.inv(self.cam2tcp)
 
     def plan_path(self, path: TimedPath) -> tuple[F64, F64, float]:
