@@ -40,8 +40,9 @@ def rig() -> Rig:
 
 def test_a_dry_run_checks_every_motion_and_sends_none(rig: Rig, tmp_path: Path) -> None:
     cfg = robot_toml(tmp_path, method=METHOD)
-    result = dry_run(cfg, tmp_path / "dry", drivers=rig.drivers(), viz=False)
+    result = dry_run(cfg, tmp_path / "dry", drivers=rig.drivers())
     assert rig.motions() == []  # the arm got no motion command
+    assert result["rerun"] and (tmp_path / "dry" / "dry_run.rrd").stat().st_size > 0
     assert not [c for c in rig.server.sent() if c.startswith("SET")]  # the gripper none
     assert result["motion_commands_sent"] == 0 and not result["moved"]
     kinds = [c["motion"] for c in result["checks"]]
