@@ -130,7 +130,7 @@ def export_onnx(
     if opset < 17:
         raise ValueError(f"opset must be >= 17, got {opset}")
     try:
-        import onnx
+        import onnx  # noqa: F401 (checked first: sealed_model uses it after the export)
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise ImportError(
             "exporting networks needs onnx and onnxscript: pip install 'heapgrasp[train]'"
@@ -176,18 +176,27 @@ def export_onnx(
                 opset_version=opset,
                 verbose=False,
             )
-        assert program is not None
-        model = program.model_proto
-        del model.metadata_props[:]
-        for key, value in meta.items():
-            entry = model.metadata_props.add()
-            entry.key, entry.value = key, value
-        onnx.checker.check_model(model)
-        data = seal(model.SerializeToString())
+        data = sealed_model(program, meta)
         _compare(cpu_net, OnnxNetwork.from_bytes(data, kind=kind, name=str(path)), r, in_channels)
     finally:
         net.to(device).train(was_training)
     return write_atomically(data, path)
+
+
+def sealed_model(program: Any, meta: Mapping[str, str]) -> bytes:
+    """The ONNX model of a ``torch.onnx.export`` program with ``meta`` as its metadata
+    (any the exporter wrote replaced), checked by ``onnx.checker`` and sealed with its
+    SHA-256 (:func:`heapgrasp.inference.seal`)."""
+    import onnx
+
+    assert program is not None
+    model = program.model_proto
+    del model.metadata_props[:]
+    for key, value in meta.items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = key, value
+    onnx.checker.check_model(model)
+    return seal(model.SerializeToString())
 
 
 def _compare(net: nn.Module, onnx_net: OnnxNetwork, r: int, channels: int) -> None:

@@ -49,7 +49,6 @@ from heapgrasp.inference import (
     META_KIND,
     META_PROVENANCE,
     META_VERSION,
-    seal,
     write_atomically,
 )
 from heapgrasp.nets.device import resolve_device
@@ -709,8 +708,9 @@ def export_segmentation(
     written atomically after its logits match PyTorch's on a random image
     (:data:`EXPORT_ATOL`). Returns ``path``."""
     try:
-        import onnx
         import onnxruntime as ort
+
+        from heapgrasp.nets.export import sealed_model
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise ImportError(
             "exporting the segmentation network needs onnx and onnxscript: "
@@ -763,14 +763,7 @@ def export_segmentation(
                 opset_version=opset,
                 verbose=False,
             )
-        assert program is not None
-        model = program.model_proto
-        del model.metadata_props[:]
-        for key, value in meta.items():
-            entry = model.metadata_props.add()
-            entry.key, entry.value = key, value
-        onnx.checker.check_model(model)
-        data = seal(model.SerializeToString())
+        data = sealed_model(program, meta)
         session = ort.InferenceSession(data, providers=["CPUExecutionProvider"])
         gen = torch.Generator().manual_seed(0)
         x = torch.randn(1, 3, 3 * m, 5 * m, generator=gen)

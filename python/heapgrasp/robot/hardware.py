@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
@@ -57,7 +57,6 @@ class Drivers:
     """The config → an unconnected gripper (``connect``/``activate``/...)."""
     clock: Callable[[], float] = time.time
     sleep: Callable[[float], None] = time.sleep
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 def camera_settings(config: RobotConfig) -> RealSenseSettings:
