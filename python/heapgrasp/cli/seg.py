@@ -1,4 +1,4 @@
-"""``heapgrasp seg train|eval|predict``: the 4-class segmentation network of HEAPGrasp §V
+"""``heapgrasp seg train|eval|predict|coco``: the 4-class segmentation network of HEAPGrasp §V
 (DeepLabv3+; background, transparent, specular, opaque).
 
 ::
@@ -7,6 +7,8 @@
     heapgrasp seg train runs/seg-synth --out runs/seg-net --encoder resnet50 --epochs 30
     heapgrasp seg eval runs/seg-net/segmentation.onnx runs/seg-heldout
     heapgrasp seg predict runs/seg-net/segmentation.onnx photo1.png photo2.jpg --out preds
+    heapgrasp seg coco labels.json --images photos/ --out runs/seg-real \\
+        --class transparent=glass,bottle --class specular=can --class opaque=box
 
 ``DATA_DIR`` holds ``images/*.png|jpg`` and ``masks/*.png`` of the same stems, masks
 holding class ids 0..3 (:mod:`heapgrasp.nets.segmentation`). ``train`` writes
@@ -199,6 +201,28 @@ def _predict(args: argparse.Namespace) -> int:
     return 0
 
 
+def _coco(args: argparse.Namespace) -> int:
+    from heapgrasp.data.coco import CocoError, convert, parse_class_map
+
+    try:
+        summary = convert(
+            args.annotations,
+            args.images,
+            args.out,
+            parse_class_map(args.class_ or []),
+            unmapped=args.unmapped,
+        )
+    except CocoError as exc:
+        return _error(str(exc))
+    print(
+        f"wrote {summary['images']} images and masks ({summary['annotations']} annotations) "
+        f"to {args.out}; pixels per class: {summary['pixels']}"
+    )
+    if summary["unmapped_as_background"]:
+        print(f"categories left as background: {', '.join(summary['unmapped_as_background'])}")
+    return 0
+
+
 def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds ``seg`` and its subcommands."""
     group = commands.add_parser(
@@ -268,3 +292,28 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--device", default="cpu", help="onnxruntime device (default cpu)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_predict)
+
+    c = sub.add_parser(
+        "coco",
+        help="COCO polygon annotations to the images/ + masks/ folder seg train reads",
+        description="Rasterises a COCO instance file (polygons, uncompressed RLE) into "
+        "class-id masks: every COCO category is mapped to transparent, specular, opaque or "
+        "background with --class; smaller objects are drawn over larger ones.",
+    )
+    c.add_argument("annotations", metavar="ANNOTATIONS.json")
+    c.add_argument("--images", required=True, metavar="DIR", help="where file_name is found")
+    c.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    c.add_argument(
+        "--class",
+        dest="class_",
+        action="append",
+        metavar="CLASS=NAME[,NAME]",
+        help="map COCO categories to a class, e.g. --class transparent=glass,bottle (repeatable)",
+    )
+    c.add_argument(
+        "--unmapped",
+        choices=("error", "background"),
+        default="error",
+        help="what a category mapped to no class becomes (default: an error naming it)",
+    )
+    c.set_defaults(func=_coco)

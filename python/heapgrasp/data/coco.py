@@ -1,0 +1,190 @@
+"""COCO annotations → the segmentation folder ``heapgrasp seg train`` reads.
+
+A COCO instance file (``images``, ``annotations``, ``categories``) labels objects with
+polygons (or uncompressed RLE for crowds); the 4-class network (HEAPGrasp §V) needs one
+class id per pixel: 0 background, 1 transparent, 2 specular, 3 opaque. :func:`convert`
+maps every COCO category to one of those classes by name, rasterises each annotation
+(COCO's pixel grid: ``(0, 0)`` is the top-left corner of the top-left pixel; a pixel
+is inside where its centre is)
+in decreasing area, so that a small object in front of a large one keeps its pixels,
+and writes ``OUT/images/NAME.png`` and ``OUT/masks/NAME.png`` (grey, class ids).
+
+Errors name the file and the entry: a category mapped to no class (unless
+``unmapped="background"``), an image missing on disk or of another size than the file
+says, an annotation of an unknown image, a polygon with fewer than 3 points, compressed
+RLE (decode it with pycocotools first).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["CLASS_IDS", "CocoError", "convert", "parse_class_map"]
+
+#: The network's object classes and their ids in the masks.
+CLASS_IDS = {"background": 0, "transparent": 1, "specular": 2, "opaque": 3}
+
+
+class CocoError(ValueError):
+    """A COCO file that cannot be converted; the message names the file and the entry."""
+
+
+def parse_class_map(items: list[str]) -> dict[str, str]:
+    """``["transparent=glass,bottle", "opaque=box"]`` → ``{"glass": "transparent", ...}``:
+    COCO category name → class."""
+    out: dict[str, str] = {}
+    for item in items:
+        cls, sep, names = item.partition("=")
+        cls = cls.strip()
+        if not sep or cls not in CLASS_IDS:
+            raise CocoError(
+                f"--class {item!r}: expected CLASS=NAME[,NAME...] with CLASS one of "
+                f"{', '.join(CLASS_IDS)}"
+            )
+        for name in (n.strip() for n in names.split(",")):
+            if not name:
+                continue
+            if name in out and out[name] != cls:
+                raise CocoError(f"--class: category {name!r} is both {out[name]} and {cls}")
+            out[name] = cls
+    return out
+
+
+def _rle(counts: Any, h: int, w: int, where: str) -> npt.NDArray[np.bool_]:
+    if isinstance(counts, str):
+        raise CocoError(f"{where}: compressed RLE; decode it with pycocotools first")
+    runs = np.asarray(counts, dtype=np.int64)
+    if runs.ndim != 1 or (runs < 0).any() or int(runs.sum()) != h * w:
+        raise CocoError(f"{where}: RLE counts do not add up to the image's {h} x {w} pixels")
+    flat = np.zeros(h * w, dtype=bool)
+    pos = 0
+    for i, n in enumerate(runs):
+        if i % 2:
+            flat[pos : pos + n] = True
+        pos += int(n)
+    return flat.reshape(w, h).T  # COCO's RLE runs down the columns
+
+
+def _polygons(polys: Any, h: int, w: int, where: str) -> npt.NDArray[np.bool_]:
+    """The pixels whose centres lie inside any of the polygons (COCO's coordinates:
+    pixel ``(u, v)`` spans ``[u, u + 1) × [v, v + 1)``, its centre at ``+0.5``)."""
+    from matplotlib.path import Path as Polygon
+
+    out = np.zeros((h, w), dtype=bool)
+    for k, poly in enumerate(polys):
+        xy = np.asarray(poly, dtype=np.float64).reshape(-1)
+        if len(xy) < 6 or len(xy) % 2 or not np.isfinite(xy).all():
+            raise CocoError(f"{where}: polygon {k} needs at least 3 finite (x, y) points")
+        pts = xy.reshape(-1, 2)
+        u0, v0 = np.clip(np.floor(pts.min(axis=0)).astype(int), 0, [w, h])
+        u1, v1 = np.clip(np.ceil(pts.max(axis=0)).astype(int), 0, [w, h])
+        if u1 <= u0 or v1 <= v0:
+            continue
+        uu, vv = np.meshgrid(np.arange(u0, u1) + 0.5, np.arange(v0, v1) + 0.5)
+        inside = Polygon(pts).contains_points(np.column_stack([uu.ravel(), vv.ravel()]))
+        out[v0:v1, u0:u1] |= inside.reshape(vv.shape)
+    return out
+
+
+def convert(
+    annotations: str | os.PathLike[str],
+    images_dir: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    class_map: Mapping[str, str],
+    *,
+    unmapped: str = "error",
+) -> dict[str, Any]:
+    """Writes the segmentation folder of a COCO file (module docstring) and returns a
+    summary: images written, annotations drawn, pixels per class."""
+    src = Path(annotations)
+    try:
+        data = json.loads(src.read_text())
+    except FileNotFoundError:
+        raise CocoError(f"{src}: not found") from None
+    except json.JSONDecodeError as exc:
+        raise CocoError(f"{src}: not JSON: {exc}") from None
+    if not isinstance(data, dict) or not all(
+        isinstance(data.get(k), list) for k in ("images", "annotations", "categories")
+    ):
+        raise CocoError(f"{src}: a COCO file has lists 'images', 'annotations', 'categories'")
+    if unmapped not in ("error", "background"):
+        raise CocoError(f"unmapped must be 'error' or 'background', got {unmapped!r}")
+    classes: dict[int, int] = {}
+    missing = []
+    for cat in data["categories"]:
+        name = str(cat.get("name"))
+        cls = class_map.get(name)
+        if cls is None:
+            missing.append(name)
+            cls = "background"
+        if cls not in CLASS_IDS:
+            raise CocoError(f"category {name!r} maps to {cls!r}, not one of {', '.join(CLASS_IDS)}")
+        classes[int(cat["id"])] = CLASS_IDS[cls]
+    if missing and unmapped == "error":
+        raise CocoError(
+            f"{src}: categories mapped to no class: {', '.join(sorted(missing))} (map them "
+            "with --class CLASS=NAME, or pass --unmapped background)"
+        )
+    images = {int(im["id"]): im for im in data["images"]}
+    by_image: dict[int, list[dict[str, Any]]] = {i: [] for i in images}
+    for a, ann in enumerate(data["annotations"]):
+        if int(ann.get("image_id", -1)) not in images:
+            raise CocoError(f"{src}: annotations[{a}] names an unknown image {ann.get('image_id')}")
+        by_image[int(ann["image_id"])].append({**ann, "_index": a})
+    root = Path(images_dir)
+    out_dir = Path(out)
+    (out_dir / "images").mkdir(parents=True, exist_ok=True)
+    (out_dir / "masks").mkdir(parents=True, exist_ok=True)
+    from PIL import Image
+
+    pixels = np.zeros(len(CLASS_IDS), dtype=np.int64)
+    drawn = 0
+    for image_id, im in images.items():
+        path = root / str(im["file_name"])
+        if not path.is_file():
+            raise CocoError(f"{src}: image {image_id}: {path} not found")
+        with Image.open(path) as img:
+            w, h = img.size
+        if (w, h) != (int(im["width"]), int(im["height"])):
+            raise CocoError(
+                f"{src}: image {image_id}: {path} is {w} x {h}, the file says "
+                f"{im['width']} x {im['height']}"
+            )
+        mask = np.zeros((h, w), dtype=np.uint8)
+        anns = sorted(by_image[image_id], key=lambda x: -float(x.get("area", 0.0)))
+        for ann in anns:
+            where = f"{src}: annotations[{ann['_index']}]"
+            seg = ann.get("segmentation")
+            if isinstance(seg, dict):
+                region = _rle(seg.get("counts"), h, w, where)
+            elif isinstance(seg, list):
+                region = _polygons(seg, h, w, where)
+            else:
+                raise CocoError(f"{where}: no polygon or RLE segmentation")
+            class_id = classes.get(int(ann.get("category_id", -1)))
+            if class_id is None:
+                raise CocoError(f"{where}: unknown category {ann.get('category_id')}")
+            mask[region] = class_id
+            drawn += 1
+        stem = Path(str(im["file_name"])).with_suffix("").as_posix().replace("/", "__")
+        if path.suffix.lower() == ".png":
+            shutil.copyfile(path, out_dir / "images" / f"{stem}.png")
+        else:
+            with Image.open(path) as img:
+                img.convert("RGB").save(out_dir / "images" / f"{stem}.png")
+        Image.fromarray(mask).save(out_dir / "masks" / f"{stem}.png")
+        pixels += np.bincount(mask.ravel(), minlength=len(CLASS_IDS))[: len(CLASS_IDS)]
+    return {
+        "images": len(images),
+        "annotations": drawn,
+        "pixels": {name: int(pixels[i]) for name, i in CLASS_IDS.items()},
+        "unmapped_as_background": sorted(missing),
+    }
