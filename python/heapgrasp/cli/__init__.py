@@ -13,7 +13,7 @@ parsed :class:`argparse.Namespace` and returning the exit status::
     heapgrasp data grasps                    the grasp network's dataset (VGN's scheme)
     heapgrasp train views DATA_DIR ...       the view network trained on that dataset
     heapgrasp train grasps DATA ...          the grasp network trained on grasp datasets
-    heapgrasp seg train|eval|predict         the 4-class segmentation network (DeepLabv3+)
+    heapgrasp seg train|eval|predict|coco    the 4-class segmentation network (DeepLabv3+)
     heapgrasp robot init|check|calibrate|run the real robot (UR + RealSense + Robotiq)
     heapgrasp replay RUN_DIR                 perception and planning rerun on a robot run
 """

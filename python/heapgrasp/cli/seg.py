@@ -227,7 +227,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     """Adds ``seg`` and its subcommands."""
     group = commands.add_parser(
         "seg",
-        help="the 4-class segmentation network: train, eval, predict",
+        help="the 4-class segmentation network: train, eval, predict; COCO labels to masks",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
