@@ -11,8 +11,8 @@ CUDA device where onnxruntime has the CUDA execution provider (``onnxruntime-gpu
 batch) is dynamic, and these ``metadata_props``:
 
 =============================  ==========================================================
-``heapgrasp.kind``             ``"view-network"``, ``"grasp-network"``, ``"grasp-critic"``
-                               or ``"viewsphere-policy"``
+``heapgrasp.kind``             ``"view-network"``, ``"grasp-network"``, ``"grasp-critic"``,
+                               ``"viewsphere-policy"`` or ``"segmentation-network"``
 ``heapgrasp.format_version``   ``"1"`` (:data:`FORMAT_VERSION`)
 ``heapgrasp.hparams``          JSON object: the architecture and what the input must be
                                (``resolution``, ``in_channels``, ``view_shape``, ...)
@@ -32,7 +32,10 @@ Inputs and outputs by kind (``B`` the batch, ``R`` = ``hparams["resolution"]``,
 * ``grasp-critic``: ``features`` ``(B, F)`` → ``logits`` ``(B,)``,
   ``F`` = ``hparams["n_features"]``;
 * ``viewsphere-policy``: ``state`` ``(B, F)`` → ``scores`` ``(B, 8)`` (one per direction
-  of seed 001's viewsphere), ``F`` = ``hparams["n_features"]``.
+  of seed 001's viewsphere), ``F`` = ``hparams["n_features"]``;
+* ``segmentation-network``: ``image`` ``(B, 3, H, W)`` → ``logits`` ``(B, K, H, W)``,
+  ``H``, ``W`` dynamic (fully convolutional), ``K`` = ``len(hparams["classes"])``
+  (:class:`heapgrasp.perception.segnet.NetworkSegmenter` checks the rest).
 
 **Errors.** A missing file raises :class:`FileNotFoundError` naming it. Any other bad
 file raises :class:`~heapgrasp.geometry.errors.WeightsError` whose message starts with
@@ -86,9 +89,17 @@ __all__ = [
 
 F32 = npt.NDArray[np.float32]
 
-Kind = Literal["view-network", "grasp-network", "grasp-critic", "viewsphere-policy"]
+Kind = Literal[
+    "view-network", "grasp-network", "grasp-critic", "viewsphere-policy", "segmentation-network"
+]
 #: Every kind of network file.
-KINDS: Final = ("view-network", "grasp-network", "grasp-critic", "viewsphere-policy")
+KINDS: Final = (
+    "view-network",
+    "grasp-network",
+    "grasp-critic",
+    "viewsphere-policy",
+    "segmentation-network",
+)
 #: ``heapgrasp.format_version`` written by this version (files of versions 1 … this load).
 FORMAT_VERSION: Final = 1
 META_KIND: Final = "heapgrasp.kind"
@@ -330,6 +341,16 @@ def _expected_io(kind: str, hp: Mapping[str, Any], p: Path) -> tuple[_Io, list[_
     if kind == "viewsphere-policy":
         f = _positive(hp, "n_features", p)
         return _Io("state", (None, f)), [_Io("scores", (None, 8))]
+    if kind == "segmentation-network":
+        classes = hp.get("classes")
+        if not isinstance(classes, list) or len(classes) < 2:
+            raise WeightsError(
+                p, f"metadata {META_HPARAMS}: 'classes' is {classes!r}, not a list of >= 2 names"
+            )
+        # Fully convolutional: the image axes are dynamic as the batch is.
+        return _Io("image", (None, 3, None, None)), [
+            _Io("logits", (None, len(classes), None, None))
+        ]
     r = _positive(hp, "resolution", p)
     c = _positive(hp, "in_channels", p)
     grid = _Io("grid", (None, c, r, r, r))
@@ -352,7 +373,9 @@ def _expected_io(kind: str, hp: Mapping[str, Any], p: Path) -> tuple[_Io, list[_
 
 
 def _describe(shape: Sequence[object]) -> str:
-    return "(" + ", ".join("B" if s is None else str(s) for s in shape) + ")"
+    """``(B, 3, *, *)``: the batch axis, then the others (``*``: dynamic)."""
+    names = ("B" if i == 0 else "*" if s is None else str(s) for i, s in enumerate(shape))
+    return "(" + ", ".join(names) + ")"
 
 
 def _detail(exc: BaseException) -> str:
@@ -380,7 +403,8 @@ class OnnxNetwork:
     ----------
     path : path-like
         The ``.onnx`` file.
-    kind : {"view-network", "grasp-network", "grasp-critic", "viewsphere-policy"}
+    kind : {"view-network", "grasp-network", "grasp-critic", "viewsphere-policy", \
+            "segmentation-network"}
         What the file must hold.
     device : str
         ``cpu`` (default), ``cuda``, ``cuda:N`` or ``auto`` (:func:`resolve_device`).
@@ -576,7 +600,8 @@ class OnnxNetwork:
     def _smoke_test(self, p: Path) -> None:
         """One forward pass on zeros: the graph runs, its outputs have the declared shapes
         and are finite (NaN or infinite weights show here)."""
-        x = np.zeros((1, *(s for s in self.input.shape[1:] if s is not None)), np.float32)
+        probe = 2 * (_as_int(self.hparams.get("pad_multiple")) or 16)  # a dynamic image axis
+        x = np.zeros((1, *(probe if s is None else s for s in self.input.shape[1:])), np.float32)
         try:
             outs = self._session_.run(None, {self.input.name: x})
         except Exception as exc:
@@ -584,11 +609,11 @@ class OnnxNetwork:
         for arg, out in zip(self._session_.get_outputs(), outs, strict=True):
             a = np.asarray(out)
             want = next(o for o in self.outputs if o.name == arg.name)
-            if a.shape != (1, *want.shape[1:]):
+            expected = (1, *(probe if s is None else s for s in want.shape[1:]))
+            if a.shape != expected:
                 raise WeightsError(
                     p,
-                    f"output {arg.name!r} of a batch of 1 has shape {a.shape}, expected "
-                    f"{(1, *want.shape[1:])}",
+                    f"output {arg.name!r} of a batch of 1 has shape {a.shape}, expected {expected}",
                 )
             if not np.isfinite(a).all():
                 raise WeightsError(
@@ -613,7 +638,8 @@ class OnnxNetwork:
         shape (float32, batch first)."""
         a = np.ascontiguousarray(x, dtype=np.float32)
         want = self.input.shape[1:]
-        if a.ndim != len(self.input.shape) or a.shape[0] < 1 or a.shape[1:] != want:
+        fits = all(w is None or w == g for w, g in zip(want, a.shape[1:], strict=False))
+        if a.ndim != len(self.input.shape) or a.shape[0] < 1 or not fits:
             raise ValueError(
                 f"{self.kind} {self.input.name!r} must have shape "
                 f"{_describe(self.input.shape)} with B >= 1, got {a.shape}"

@@ -25,10 +25,8 @@ Errors: a missing file raises :class:`FileNotFoundError`; any other bad file a
 
 from __future__ import annotations
 
-import json
 import math
 import os
-import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Final
@@ -37,22 +35,13 @@ import numpy as np
 import numpy.typing as npt
 
 from heapgrasp.geometry.errors import WeightsError
-from heapgrasp.inference import (
-    FORMAT_VERSION,
-    META_HPARAMS,
-    META_KIND,
-    META_PROVENANCE,
-    META_SHA256,
-    META_VERSION,
-    content_digest,
-    resolve_device,
-)
+from heapgrasp.inference import META_HPARAMS, Kind, OnnxNetwork
 from heapgrasp.perception.frames import Frame
 
 __all__ = ["CLASSES", "SEG_KIND", "NetworkSegmenter", "class_fractions", "colorize"]
 
 #: ``heapgrasp.kind`` of a segmentation network file.
-SEG_KIND: Final = "segmentation-network"
+SEG_KIND: Final[Kind] = "segmentation-network"
 #: The paper's four classes, in class-id order (0 = background).
 CLASSES: Final = ("background", "transparent", "specular", "opaque")
 #: Display colour (RGB) of each class id in :func:`colorize`.
@@ -77,23 +66,6 @@ def class_fractions(
     counts = np.bincount(np.asarray(labels).ravel(), minlength=len(classes))
     total = max(int(counts.sum()), 1)
     return {name: float(counts[i]) / total for i, name in enumerate(classes)}
-
-
-def _ort() -> Any:
-    try:
-        import onnxruntime
-    except ImportError as exc:  # pragma: no cover - a default dependency
-        raise ImportError(
-            "running the segmentation network needs onnxruntime, a dependency of heapgrasp: "
-            "reinstall heapgrasp, or `pip install onnxruntime` (onnxruntime-gpu for CUDA)"
-        ) from exc
-    return onnxruntime
-
-
-def _detail(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-    text = re.sub(r"^\[ONNXRuntimeError\] : \d+ : \w+ : ", "", text)
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
 def _triple(hp: Mapping[str, Any], key: str, p: Path, *, positive: bool) -> F32:
@@ -139,16 +111,7 @@ class NetworkSegmenter:
     def __init__(
         self, path: str | os.PathLike[str], *, device: str = "cpu", threads: int | None = None
     ) -> None:
-        p = Path(path)
-        if not p.exists():
-            raise FileNotFoundError(f"segmentation network file not found: {p}")
-        if not p.is_file():
-            raise WeightsError(p, "not a file (expected an ONNX segmentation network)")
-        try:
-            data = p.read_bytes()
-        except OSError as exc:
-            raise WeightsError(p, f"unreadable: {exc.strerror or _detail(exc)}") from exc
-        self._open(p, data, device, threads)
+        self._adopt(OnnxNetwork(path, kind=SEG_KIND, device=device, threads=threads))
 
     @classmethod
     def from_bytes(
@@ -156,142 +119,35 @@ class NetworkSegmenter:
     ) -> NetworkSegmenter:
         """A segmenter from a serialised model, checked as a file is; errors name ``name``."""
         self = cls.__new__(cls)
-        self._open(Path(name), bytes(data), device, threads)
+        net = OnnxNetwork.from_bytes(data, kind=SEG_KIND, device=device, threads=threads, name=name)
+        self._adopt(net)
         return self
 
-    # ------------------------------------------------------------------ checks
-    def _open(self, p: Path, data: bytes, device: str, threads: int | None) -> None:
-        self.path = p
-        self.device = resolve_device(device)
-        if threads is not None and (
-            isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
-        ):
-            raise ValueError(f"threads must be an integer >= 1 or None, got {threads!r}")
-        if not data:
-            raise WeightsError(p, "empty file (0 bytes), not an ONNX model")
-        session = self._session(p, data, threads)
-        meta = dict(session.get_modelmeta().custom_metadata_map)
-        kind = meta.get(META_KIND)
-        if kind is None:
-            raise WeightsError(
-                p, f"an ONNX model but not a heapgrasp network: metadata {META_KIND!r} missing"
-            )
-        if kind != SEG_KIND:
-            raise WeightsError(p, f"holds a {kind!r} ({META_KIND}), expected a {SEG_KIND!r}")
-        version = meta.get(META_VERSION, "")
-        if not re.fullmatch(r"[0-9]+", version) or not 1 <= int(version) <= FORMAT_VERSION:
-            raise WeightsError(p, f"unsupported or missing {META_VERSION} {version!r}")
-        digest = meta.get(META_SHA256)
-        if digest is None:
-            raise WeightsError(p, f"metadata {META_SHA256!r} missing")
-        if content_digest(data) != digest:
-            raise WeightsError(
-                p, f"garbled: the model's bytes do not match their SHA-256 ({META_SHA256})"
-            )
-        hp = self._json(meta, META_HPARAMS, p)
-        self.provenance = self._json(meta, META_PROVENANCE, p)
-        classes = hp.get("classes")
-        if (
-            not isinstance(classes, list)
-            or len(classes) < 2
-            or not all(isinstance(c, str) for c in classes)
-            or classes[0] != "background"
-        ):
+    def _adopt(self, net: OnnxNetwork) -> None:
+        """Checks what only a segmentation network's metadata holds (the file, its
+        metadata, inputs, outputs and a forward pass were checked by
+        :class:`~heapgrasp.inference.OnnxNetwork`)."""
+        p, hp = net.path, net.hparams
+        classes: list[Any] = list(hp["classes"])  # a list of >= 2 (OnnxNetwork checked it)
+        if not all(isinstance(c, str) for c in classes) or classes[0] != "background":
             raise WeightsError(
                 p,
-                f"metadata {META_HPARAMS}: 'classes' is {classes!r}, not a list of >= 2 "
-                f"names starting with 'background'",
+                f"metadata {META_HPARAMS}: 'classes' is {classes!r}, not names starting "
+                f"with 'background'",
             )
         pad = hp.get("pad_multiple")
         if isinstance(pad, bool) or not isinstance(pad, int) or not 1 <= pad <= 256:
             raise WeightsError(p, f"metadata {META_HPARAMS}: 'pad_multiple' is {pad!r}")
+        self.network = net
+        self.path = p
+        self.device = net.device
         self.hparams = hp
+        self.provenance = net.provenance
         self.classes: tuple[str, ...] = tuple(classes)
         self.mean = _triple(hp, "mean", p, positive=False)
         self.std = _triple(hp, "std", p, positive=True)
         self.pad_multiple = int(pad)
         self.encoder = str(hp.get("encoder", "?"))
-        self._check_io(p, session)
-        self._session_ = session
-        x = np.zeros((1, 3, self.pad_multiple * 2, self.pad_multiple * 2), np.float32)
-        try:
-            out = np.asarray(session.run(["logits"], {"image": x})[0])
-        except Exception as exc:
-            raise WeightsError(p, f"a forward pass fails: {_detail(exc)}") from exc
-        if out.shape != (1, len(self.classes), *x.shape[2:]):
-            raise WeightsError(
-                p,
-                f"'logits' of a {x.shape} input has shape {out.shape}, expected "
-                f"{(1, len(self.classes), *x.shape[2:])}",
-            )
-        if not np.isfinite(out).all():
-            raise WeightsError(p, "'logits' hold NaN or infinity on an all-zero input")
-
-    @staticmethod
-    def _json(meta: Mapping[str, str], key: str, p: Path) -> dict[str, Any]:
-        try:
-            value = json.loads(meta[key])
-        except KeyError:
-            raise WeightsError(p, f"metadata {key!r} missing") from None
-        except json.JSONDecodeError as exc:
-            raise WeightsError(p, f"metadata {key!r} is not valid JSON ({exc})") from None
-        if not isinstance(value, dict):
-            raise WeightsError(p, f"metadata {key!r} is not a JSON object")
-        return value
-
-    def _session(self, p: Path, data: bytes, threads: int | None) -> Any:
-        ort = _ort()
-        options = ort.SessionOptions()
-        options.log_severity_level = 3
-        if threads is None:
-            env = os.environ.get("HEAPGRASP_NUM_THREADS", "")
-            threads = int(env) if env.isdigit() and int(env) >= 1 else None
-        if threads is not None:
-            options.intra_op_num_threads = threads
-        providers: list[Any] = ["CPUExecutionProvider"]
-        if self.device != "cpu":
-            index = int(self.device.partition(":")[2] or 0)
-            providers.insert(0, ("CUDAExecutionProvider", {"device_id": index}))
-        try:
-            return ort.InferenceSession(data, sess_options=options, providers=providers)
-        except Exception as exc:
-            if data[:4] == b"PK\x03\x04":
-                raise WeightsError(
-                    p,
-                    "a zip archive (a PyTorch checkpoint?), not an ONNX model; export with "
-                    "heapgrasp seg train",
-                ) from exc
-            raise WeightsError(
-                p, f"not a valid ONNX model (corrupt, truncated or another format): {_detail(exc)}"
-            ) from exc
-
-    def _check_io(self, p: Path, session: Any) -> None:
-        inputs, outputs = session.get_inputs(), session.get_outputs()
-        if [i.name for i in inputs] != ["image"]:
-            raise WeightsError(p, f"inputs are {[i.name for i in inputs]}, expected ['image']")
-        if [o.name for o in outputs] != ["logits"]:
-            raise WeightsError(p, f"outputs are {[o.name for o in outputs]}, expected ['logits']")
-        for arg, channels in ((inputs[0], 3), (outputs[0], len(self.classes))):
-            shape = list(arg.shape)
-            if arg.type != "tensor(float)" or len(shape) != 4:
-                raise WeightsError(
-                    p,
-                    f"{arg.name!r} is {arg.type} of rank {len(shape)}, expected a float "
-                    f"(B, {channels}, H, W) tensor",
-                )
-            if shape[1] != channels:
-                raise WeightsError(
-                    p,
-                    f"{arg.name!r} has {shape[1]} channels, expected {channels} "
-                    f"(metadata {META_HPARAMS})",
-                )
-            fixed = [s for s in (shape[0], shape[2], shape[3]) if isinstance(s, int)]
-            if fixed:
-                raise WeightsError(
-                    p,
-                    f"{arg.name!r} has shape {shape}: the batch and image axes must be "
-                    f"dynamic (export with dynamic axes 0, 2 and 3)",
-                )
 
     # ------------------------------------------------------------------ use
     def logits(self, rgb: npt.ArrayLike) -> F32:
@@ -314,7 +170,7 @@ class NetworkSegmenter:
             else:
                 x = np.pad(x, ((0, ph), (0, pw), (0, 0)), mode="edge")
         x = np.ascontiguousarray(x.transpose(2, 0, 1)[None])
-        out = self._session_.run(["logits"], {"image": x})[0]
+        (out,) = self.network.run(x)
         return np.asarray(out[0, :, :h, :w], dtype=np.float32)
 
     def predict(self, rgb: npt.ArrayLike) -> U8:
