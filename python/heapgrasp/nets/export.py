@@ -130,7 +130,7 @@ def export_onnx(
     if opset < 17:
         raise ValueError(f"opset must be >= 17, got {opset}")
     try:
-        import onnx  # noqa: F401 (checked first: sealed_model uses it after the export)
+        import onnx  # noqa: F401 (checked first: export_sealed uses it after the export)
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise ImportError(
             "exporting networks needs onnx and onnxscript: pip install 'heapgrasp[train]'"
@@ -142,6 +142,49 @@ def export_onnx(
     if clash:
         raise ValueError(f"hparams may not replace the architecture's {', '.join(clash)}")
     all_hparams = {**arch, **dict(hparams or {})}
+    r = net.resolution
+    was_training = net.training
+    device = next(net.parameters()).device
+    cpu_net = net.to("cpu").eval()
+    example = torch.zeros(2, in_channels, r, r, r)
+    try:
+        data = export_sealed(
+            cpu_net,
+            example,
+            kind=kind,
+            hparams=all_hparams,
+            provenance=provenance,
+            input_name="grid",
+            output_names=outputs,
+            dynamic_shapes=({0: torch.export.Dim("batch")},),
+            opset=opset,
+        )
+        _compare(cpu_net, OnnxNetwork.from_bytes(data, kind=kind, name=str(path)), r, in_channels)
+    finally:
+        net.to(device).train(was_training)
+    return write_atomically(data, path)
+
+
+def export_sealed(
+    cpu_net: nn.Module,
+    example: torch.Tensor,
+    *,
+    kind: Kind,
+    hparams: Mapping[str, Any],
+    provenance: Mapping[str, Any],
+    input_name: str,
+    output_names: list[str],
+    dynamic_shapes: tuple[dict[int, Any], ...],
+    opset: int,
+) -> bytes:
+    """``cpu_net`` (on the CPU, in eval mode) exported with ``torch.onnx.export`` (dynamo)
+    as a heapgrasp network file's bytes: its metadata (``kind``, the format version,
+    ``hparams``, ``provenance`` with ``command``, ``created``, ``machine``, ``data`` and
+    ``metrics`` filled in where missing; plain JSON, else ValueError) replacing any the
+    exporter wrote, checked by ``onnx.checker`` and sealed with its SHA-256
+    (:func:`heapgrasp.inference.seal`)."""
+    import onnx
+
     prov = {
         "command": shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]) if sys.argv else "",
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
@@ -153,42 +196,23 @@ def export_onnx(
     meta = {
         META_KIND: kind,
         META_VERSION: str(FORMAT_VERSION),
-        META_HPARAMS: _json(all_hparams, "hparams"),
+        META_HPARAMS: _json(dict(hparams), "hparams"),
         META_PROVENANCE: _json(prov, "provenance"),
     }
-    r = net.resolution
-    was_training = net.training
-    device = next(net.parameters()).device
-    cpu_net = net.to("cpu").eval()
-    example = torch.zeros(2, in_channels, r, r, r)
-    try:
-        with torch.no_grad(), warnings.catch_warnings():
-            # The exporter's own notices (deprecations inside torch.export) are not ours.
-            warnings.simplefilter("ignore")
-            program = torch.onnx.export(
-                cpu_net,
-                (example,),
-                None,
-                dynamo=True,
-                input_names=["grid"],
-                output_names=outputs,
-                dynamic_shapes=({0: torch.export.Dim("batch")},),
-                opset_version=opset,
-                verbose=False,
-            )
-        data = sealed_model(program, meta)
-        _compare(cpu_net, OnnxNetwork.from_bytes(data, kind=kind, name=str(path)), r, in_channels)
-    finally:
-        net.to(device).train(was_training)
-    return write_atomically(data, path)
-
-
-def sealed_model(program: Any, meta: Mapping[str, str]) -> bytes:
-    """The ONNX model of a ``torch.onnx.export`` program with ``meta`` as its metadata
-    (any the exporter wrote replaced), checked by ``onnx.checker`` and sealed with its
-    SHA-256 (:func:`heapgrasp.inference.seal`)."""
-    import onnx
-
+    with torch.no_grad(), warnings.catch_warnings():
+        # The exporter's own notices (deprecations inside torch.export) are not ours.
+        warnings.simplefilter("ignore")
+        program = torch.onnx.export(
+            cpu_net,
+            (example,),
+            None,
+            dynamo=True,
+            input_names=[input_name],
+            output_names=output_names,
+            dynamic_shapes=dynamic_shapes,
+            opset_version=opset,
+            verbose=False,
+        )
     assert program is not None
     model = program.model_proto
     del model.metadata_props[:]

@@ -24,14 +24,10 @@ The ONNX file runs without PyTorch in
 
 from __future__ import annotations
 
-import datetime as _dt
 import hashlib
-import json
 import math
 import os
-import platform
 import time
-import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -43,14 +39,7 @@ import torch
 from torch import Tensor, nn
 
 from heapgrasp.geometry.errors import WeightsError
-from heapgrasp.inference import (
-    FORMAT_VERSION,
-    META_HPARAMS,
-    META_KIND,
-    META_PROVENANCE,
-    META_VERSION,
-    write_atomically,
-)
+from heapgrasp.inference import Kind, OnnxNetwork, write_atomically
 from heapgrasp.nets.device import resolve_device
 from heapgrasp.nets.training import (
     TrainSetupError,
@@ -90,7 +79,7 @@ I64 = npt.NDArray[np.int64]
 #: The paper's classes in class-id order (:data:`heapgrasp.perception.segnet.CLASSES`).
 CLASSES: Final = ("background", "transparent", "specular", "opaque")
 #: ``heapgrasp.kind`` of the exported file (:data:`heapgrasp.perception.segnet.SEG_KIND`).
-SEG_KIND: Final = "segmentation-network"
+SEG_KIND: Final[Kind] = "segmentation-network"
 ENCODERS: Final = ("resnet50", "resnet18", "mobilenet_v2")
 IMAGENET_MEAN: Final = (0.485, 0.456, 0.406)
 IMAGENET_STD: Final = (0.229, 0.224, 0.225)
@@ -690,11 +679,6 @@ def train(
 # --------------------------------------------------------------------------- export
 
 
-def _machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    return f"{cpu}, {os.cpu_count()} cores, {platform.system()}"
-
-
 def export_segmentation(
     net: SegNet,
     path: str | os.PathLike[str],
@@ -708,14 +692,14 @@ def export_segmentation(
     written atomically after its logits match PyTorch's on a random image
     (:data:`EXPORT_ATOL`). Returns ``path``."""
     try:
-        import onnxruntime as ort
-
-        from heapgrasp.nets.export import sealed_model
+        import onnx  # noqa: F401 (export_sealed needs it)
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise ImportError(
             "exporting the segmentation network needs onnx and onnxscript: "
             "pip install 'heapgrasp[train]'"
         ) from exc
+    from heapgrasp.nets.export import export_sealed
+
     hparams = {
         **net.hparams(),
         "classes": list(CLASSES[: net.classes]),
@@ -725,51 +709,33 @@ def export_segmentation(
         "pad_multiple": PAD_MULTIPLE,
         "input_size": [int(s) for s in input_size],
     }
-    prov = {
-        "command": "",
-        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
-        "machine": _machine(),
-        "data": None,
-        "metrics": None,
-        **dict(provenance or {}),
-    }
-    meta = {
-        META_KIND: SEG_KIND,
-        META_VERSION: str(FORMAT_VERSION),
-        META_HPARAMS: json.dumps(hparams, sort_keys=True),
-        META_PROVENANCE: json.dumps(prov, sort_keys=True, default=str),
-    }
     was_training = net.training
     device = next(net.parameters()).device
     cpu_net = net.to("cpu").eval()
     m = PAD_MULTIPLE
-    example = torch.zeros(2, 3, 4 * m, 6 * m)
     dims = {
         0: torch.export.Dim("batch", max=1024),
         2: torch.export.Dim("height", min=2 * m, max=8192),
         3: torch.export.Dim("width", min=2 * m, max=8192),
     }
     try:
-        with torch.no_grad(), warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            program = torch.onnx.export(
-                cpu_net,
-                (example,),
-                None,
-                dynamo=True,
-                input_names=["image"],
-                output_names=["logits"],
-                dynamic_shapes=(dims,),
-                opset_version=opset,
-                verbose=False,
-            )
-        data = sealed_model(program, meta)
-        session = ort.InferenceSession(data, providers=["CPUExecutionProvider"])
+        data = export_sealed(
+            cpu_net,
+            torch.zeros(2, 3, 4 * m, 6 * m),
+            kind=SEG_KIND,
+            hparams=hparams,
+            provenance=dict(provenance or {}),
+            input_name="image",
+            output_names=["logits"],
+            dynamic_shapes=(dims,),
+            opset=opset,
+        )
+        onnx_net = OnnxNetwork.from_bytes(data, kind=SEG_KIND, name=str(path))
         gen = torch.Generator().manual_seed(0)
         x = torch.randn(1, 3, 3 * m, 5 * m, generator=gen)
         with torch.no_grad():
             ref = cpu_net(x).numpy()
-        got = session.run(["logits"], {"image": x.numpy()})[0]
+        (got,) = onnx_net.run(x.numpy())
         diff = float(np.max(np.abs(got - ref)))
         if not diff <= EXPORT_ATOL:
             raise ValueError(
