@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import rtde_control
 import rtde_receive
+from fake_hardware import CAM2TCP, WORLD2BASE
 from fake_ur import (
     ClockCamera,
     FakeControl,
@@ -35,14 +36,6 @@ from heapgrasp.robot.ur import (
 )
 from scipy.spatial.transform import Rotation
 
-#: The world (the scene cube's corner) in the base frame: turned 90° and offset.
-WORLD2BASE = np.eye(4)
-WORLD2BASE[:3, :3] = Rotation.from_euler("z", 90, degrees=True).as_matrix()
-WORLD2BASE[:3, 3] = (0.45, -0.15, 0.02)
-#: The camera 8 cm beside and 12 cm behind the TCP, looking along its z.
-CAM2TCP = np.eye(4)
-CAM2TCP[:3, :3] = Rotation.from_euler("z", 3, degrees=True).as_matrix()
-CAM2TCP[:3, 3] = (0.0, 0.08, -0.12)
 SPEC = CameraSpec(width=64, height=48, fx=54.0, fy=54.0, cx=31.5, cy=23.5)
 
 
