@@ -139,15 +139,31 @@ class NetworkSegmenter:
         if isinstance(pad, bool) or not isinstance(pad, int) or not 1 <= pad <= 256:
             raise WeightsError(p, f"metadata {META_HPARAMS}: 'pad_multiple' is {pad!r}")
         self.network = net
-        self.path = p
-        self.device = net.device
-        self.hparams = hp
-        self.provenance = net.provenance
         self.classes: tuple[str, ...] = tuple(classes)
         self.mean = _triple(hp, "mean", p, positive=False)
         self.std = _triple(hp, "std", p, positive=True)
         self.pad_multiple = int(pad)
         self.encoder = str(hp.get("encoder", "?"))
+
+    @property
+    def path(self) -> Path:
+        """The file (or the name of the bytes) it was read from."""
+        return self.network.path
+
+    @property
+    def device(self) -> str:
+        """Where it runs (``cpu`` or ``cuda[:N]``)."""
+        return self.network.device
+
+    @property
+    def hparams(self) -> dict[str, Any]:
+        """The file's hyper-parameters."""
+        return self.network.hparams
+
+    @property
+    def provenance(self) -> dict[str, Any]:
+        """What made the weights (the model card's facts)."""
+        return self.network.provenance
 
     # ------------------------------------------------------------------ use
     def logits(self, rgb: npt.ArrayLike) -> F32:

@@ -257,10 +257,12 @@ def calibrate_robot(
         for i, tcp_base in enumerate(targets):
             tcp_world = arm.base2world @ tcp_base
             try:
-                arm._check_poses(
-                    arm._segment(arm.tcp if i == 0 else arm.base2world @ targets[i - 1], tcp_world)
+                arm.check_poses(
+                    arm.straight_poses(
+                        arm.tcp if i == 0 else arm.base2world @ targets[i - 1], tcp_world
+                    )
                 )
-                arm._reachable(tcp_world)
+                arm.check_reachable(tcp_world)
                 checks.append({"pose": i, "ok": True})
             except Exception as exc:
                 checks.append({"pose": i, "ok": False, "detail": str(exc)})
@@ -274,8 +276,8 @@ def calibrate_robot(
         for i, tcp_base in enumerate(targets):
             if not checks[i]["ok"]:
                 continue
-            arm._move_l(arm.base2world @ tcp_base, min(0.1, lim.tool_speed), lim.tool_acceleration)
-            frame = arm._still_frame()
+            arm.move_l(arm.base2world @ tcp_base, min(0.1, lim.tool_speed), lim.tool_acceleration)
+            frame = arm.still_frame()
             if frame.rgb is None:
                 raise DeviceError("the camera delivered a frame without colour")
             images.append(frame.rgb)

@@ -44,7 +44,7 @@ from heapgrasp.robot.errors import RobotConfigError, RobotError
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE, translate
 from heapgrasp.robot.hardware import Drivers, HardwareRobot
 from heapgrasp.robot.interfaces import Contact, UnreachableError
-from heapgrasp.robot.ur import URArm, continuous_roll, pose_from_rtde
+from heapgrasp.robot.ur import URArm, continuous_roll
 
 __all__ = ["DryRunArm", "dry_run", "execute", "robot_record"]
 
@@ -78,9 +78,9 @@ class DryRunArm(ArmWrapper):
     def check_pose(self, kind: str, tcp: F64, *, straight_from_here: bool = False) -> bool:
         """Checks a TCP pose (and the straight move there) against the box and reach."""
         try:
-            poses = self.arm._segment(self.arm.tcp, tcp) if straight_from_here else tcp
-            self.arm._check_poses(poses)
-            self.arm._reachable(tcp)
+            poses = self.arm.straight_poses(self.arm.tcp, tcp) if straight_from_here else tcp
+            self.arm.check_poses(poses)
+            self.arm.check_reachable(tcp)
         except UnreachableError as exc:
             self._log(kind, False, str(exc), position=tcp[:3, 3].tolist())
             return False
@@ -88,12 +88,10 @@ class DryRunArm(ArmWrapper):
         return True
 
     def park(self) -> None:
-        q = list(self.arm.config.arm.park)
-        fk = self.arm._call("forward kinematics", self.arm.control.getForwardKinematics, q)
-        self.check_pose("park", self.arm.base2world @ pose_from_rtde(fk))
+        self.check_pose("park", self.arm.park_pose())
 
     def _here(self) -> Frame:
-        return self.arm._still_frame()
+        return self.arm.still_frame()
 
     def look(self, cam2world: F64) -> Frame:
         goal = continuous_roll(np.asarray(cam2world)[None], self.arm.tcp @ self.arm.cam2tcp)[0]

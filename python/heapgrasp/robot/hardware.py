@@ -75,10 +75,14 @@ def camera_settings(config: RobotConfig) -> RealSenseSettings:
 class HardwareRobot:
     """An arm with its camera and gripper (:class:`~heapgrasp.robot.interfaces.Robot`)."""
 
-    def __init__(self, arm: URArm, gripper: Any, camera: Any) -> None:
+    def __init__(self, arm: URArm, gripper: Any) -> None:
         self.arm = arm
         self.gripper = gripper
-        self.camera = camera
+
+    @property
+    def camera(self) -> Any:
+        """The camera the arm carries."""
+        return self.arm.camera
 
     @classmethod
     def connect(
@@ -116,7 +120,7 @@ class HardwareRobot:
                 except Exception:
                     continue
             raise
-        return cls(arm, gripper, camera)
+        return cls(arm, gripper)
 
     def close(self) -> None:
         """Stops the arm and releases every device (best effort, never raises)."""

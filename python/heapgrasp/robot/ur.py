@@ -314,7 +314,7 @@ class URArm:
         return float(np.linalg.norm(np.asarray(f, dtype=np.float64)[:3]))
 
     # ------------------------------------------------------------------ checks
-    def _check_poses(self, tcp_world: F64) -> None:
+    def check_poses(self, tcp_world: F64) -> None:
         """The TCP and the camera inside the box at these ``(N, 4, 4)`` TCP poses."""
         tcp_world = tcp_world.reshape(-1, 4, 4)
         ws = self.config.workspace
@@ -324,12 +324,13 @@ class URArm:
         except SafetyError as exc:
             raise OutsideWorkspace(str(exc)) from None
 
-    def _reachable(self, tcp_world: F64) -> None:
+    def check_reachable(self, tcp_world: F64) -> None:
+        """:class:`UnreachableError` where the controller says the pose is out of reach."""
         pose = self._to_base(tcp_world)
         if not self._call("the safety-limit check", self.control.isPoseWithinSafetyLimits, pose):
             raise UnreachableError("the pose is outside the arm's reach or safety limits")
 
-    def _segment(self, a: F64, b: F64, n: int = 11) -> F64:
+    def straight_poses(self, a: F64, b: F64, n: int = 11) -> F64:
         """Poses along the straight TCP motion from ``a`` to ``b`` (for the box check)."""
         s = np.linspace(0.0, 1.0, n)
         rots = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([a[:3, :3], b[:3, :3]])))(s)
@@ -339,28 +340,40 @@ class URArm:
         return out
 
     # ------------------------------------------------------------------ motions
-    def _move_l(self, tcp_world: F64, speed: float, acceleration: float) -> None:
+    def move_l(self, tcp_world: F64, speed: float, acceleration: float) -> None:
         """A checked blocking ``moveL`` from where the TCP is to ``tcp_world``."""
         check_move(self.config.limits, speed, acceleration)
-        self._check_poses(self._segment(self.tcp, tcp_world))
-        self._reachable(tcp_world)
+        self.check_poses(self.straight_poses(self.tcp, tcp_world))
+        self.check_reachable(tcp_world)
         self.check_state("moveL")
         self.commands += 1
         self._call("moveL", self.control.moveL, self._to_base(tcp_world), speed, acceleration)
         self.check_state("moveL")
 
-    def park(self) -> None:
-        """``moveJ`` to ``[arm] park`` (its TCP checked inside the box first)."""
+    def park_pose(self) -> F64:
+        """The TCP pose (world) of ``[arm] park``, from the controller's forward
+        kinematics."""
         q = list(self.config.arm.park)
         fk = self._call("forward kinematics", self.control.getForwardKinematics, q)
-        self._check_poses(self.base2world @ pose_from_rtde(fk))
+        return self.base2world @ pose_from_rtde(fk)
+
+    def park(self) -> None:
+        """``moveJ`` to ``[arm] park`` (its TCP checked inside the box first)."""
+        self.check_poses(self.park_pose())
         lim = self.config.limits
         self.check_state("moveJ")
         self.commands += 1
-        self._call("moveJ", self.control.moveJ, q, lim.joint_speed, lim.joint_acceleration)
+        self._call(
+            "moveJ",
+            self.control.moveJ,
+            list(self.config.arm.park),
+            lim.joint_speed,
+            lim.joint_acceleration,
+        )
         self.check_state("moveJ")
 
-    def _still_frame(self) -> Frame:
+    def still_frame(self) -> Frame:
+        """A frame taken after the arm rests ``[arm] settle`` s, with its pose."""
         self._sleep(self.config.arm.settle)
         self._camera.poll()  # drop what was taken while moving
         t_min = self.clock
@@ -380,8 +393,8 @@ class URArm:
         captures."""
         lim = self.config.limits
         goal = continuous_roll(np.asarray(cam2world)[None], self.tcp @ self.cam2tcp)[0]
-        self._move_l(goal @ np.linalg.inv(self.cam2tcp), lim.tool_speed, lim.tool_acceleration)
-        return self._still_frame()
+        self.move_l(goal @ np.linalg.inv(self.cam2tcp), lim.tool_speed, lim.tool_acceleration)
+        return self.still_frame()
 
     def _ik(self, tcp: F64, picks: list[int]) -> F64:
         """Joint positions at the TCP samples ``picks`` (controller IK, each near the
@@ -422,7 +435,7 @@ class URArm:
         ~30 Hz) within ``[limits]``; only the timing changes. A path that would need
         more than ``[arm] max_slowdown``, or leaves the box, is refused."""
         times, tcp = self._sample(path, 1.0)
-        self._check_poses(tcp)
+        self.check_poses(tcp)
         if len(times) < 2:
             return times, tcp, 1.0
         stride = max(1, int(self.config.arm.servo_rate / 30))
@@ -468,7 +481,7 @@ class URArm:
         lim = self.config.limits
         here = self.tcp
         if np.linalg.norm(here[:3, 3] - tcp[0, :3, 3]) > 0.005:
-            self._move_l(tcp[0], lim.tool_speed, lim.tool_acceleration)
+            self.move_l(tcp[0], lim.tool_speed, lim.tool_acceleration)
         arm = self.config.arm
         dt = 1.0 / arm.servo_rate
         buffer = PoseBuffer()
@@ -517,8 +530,8 @@ class URArm:
         """Opens the gripper to ``opening``, then goes up to ``[arm] travel_height``,
         across above ``tcp`` and down to it (three checked ``moveL``)."""
         pose = np.asarray(tcp, dtype=np.float64)
-        self._check_poses(pose)
-        self._reachable(pose)
+        self.check_poses(pose)
+        self.check_reachable(pose)
         if self.open_to is not None:
             self.open_to(opening)
         lim = self.config.limits
@@ -529,7 +542,7 @@ class URArm:
         above = pose.copy()
         above[2, 3] = height
         for leg in (up, above, pose):
-            self._move_l(leg, lim.tool_speed, lim.tool_acceleration)
+            self.move_l(leg, lim.tool_speed, lim.tool_acceleration)
 
     def move_linear(self, tcp: F64, *, speed: float = 0.1, stop_on_contact: bool = False) -> bool:
         """A straight ``moveL`` at ``speed`` (capped at ``[limits] tool_speed``); with
@@ -538,12 +551,12 @@ class URArm:
         lim = self.config.limits
         speed = min(speed, lim.tool_speed)
         if not stop_on_contact:
-            self._move_l(np.asarray(tcp, dtype=np.float64), speed, lim.tool_acceleration)
+            self.move_l(np.asarray(tcp, dtype=np.float64), speed, lim.tool_acceleration)
             return True
         target = np.asarray(tcp, dtype=np.float64)
         check_move(lim, speed, lim.tool_acceleration)
-        self._check_poses(self._segment(self.tcp, target))
-        self._reachable(target)
+        self.check_poses(self.straight_poses(self.tcp, target))
+        self.check_reachable(target)
         self._call("zeroFtSensor", self.control.zeroFtSensor)
         self.check_state("moveL")
         self.commands += 1
