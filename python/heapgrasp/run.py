@@ -117,8 +117,11 @@ def run_scene(
     protocol and returns its record (phases with metrics, stop reason, timings). With
     ``record``, every phase is recorded there as a ``.rrd`` file (:mod:`heapgrasp.viz`),
     with RGB images rendered for it (the outcomes are the same)."""
+    import numpy as np
+
     from heapgrasp.loop.protocol import run_clutter_removal
     from heapgrasp.sim.build import scene_world, sim_pipeline
+    from heapgrasp.sim.leftovers import describe_leftovers
 
     t0 = time.perf_counter()
     seed = config.seed + index
@@ -153,6 +156,8 @@ def run_scene(
         finally:
             if recorder is not None:
                 recorder.close()
+        # Every object left, and whether the hand could have taken it on its true mesh.
+        leftovers = describe_leftovers(world, np.random.default_rng(seed))
     return {
         "scene": index,
         "seed": seed,
@@ -161,6 +166,7 @@ def run_scene(
         "objects_total": total,
         "stop_reason": reason.value,
         "phases": [p.to_dict() for p in phases],
+        "leftovers": leftovers,
         "wall_time_s": time.perf_counter() - t0,
         "world": scene,
     }
@@ -393,6 +399,15 @@ def format_summary(summary: dict[str, Any]) -> str:
         lines.append(
             f"{name:<12} {succ:>22} {removed:>9} {_fmt(s['trajectory_length_m']):>15} "
             f"{_fmt(s['shortest_trajectory_ratio'], 0):>19} {_fmt(s['execution_time_s']):>14}"
+        )
+    objects = summary.get("objects") or {}
+    if objects.get("objects_left") is not None and objects.get("objects_total"):
+        total = objects["objects_total"]
+        lines.append(
+            f"objects: {objects['objects_removed']} removed, {objects['objects_left']} left "
+            f"({objects['leftovers_graspable']} of them graspable on their true meshes), "
+            f"{objects['objects_knocked_out']} knocked out of the workspace, of {total}; "
+            f"removal ceiling {100 * objects['removal_ceiling']:.1f} %"
         )
     if summary.get("grasp_success_ci95"):
         lo, hi = summary["grasp_success_ci95"]

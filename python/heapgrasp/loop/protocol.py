@@ -7,7 +7,10 @@ grasp carries the object to a bin beside the workspace and opens the hand
 
 With a :class:`~heapgrasp.robot.interfaces.SceneTruth` (simulation) the protocol also
 knows how many objects are left (rule i), which object each grasp took and what a
-collision touched; without one (a real robot) rule (i) is left to the operator.
+collision touched; without one (a real robot) rule (i) is left to the operator. After
+every attempt the scene truth lets the objects come to rest and takes out those that
+ended outside the workspace (VGN's simulation protocol): the phase records them as
+``knocked_out`` (id → category), and they count neither as removed nor as left.
 """
 
 from __future__ import annotations
@@ -139,6 +142,9 @@ def run_clutter_removal(
                 "touched": [] if truth is None else truth.touched(contact, planned.target_object),
                 "parts": sorted(result.parts),
             }
+        if truth is not None:  # after what the collision touched was named
+            knocked = truth.settle()
+            extra["knocked_out"] = {str(k): v for k, v in sorted(knocked.items())}
         phases.append(
             Phase(
                 camera_positions=planned.camera_positions,

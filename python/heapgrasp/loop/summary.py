@@ -17,7 +17,7 @@ from heapgrasp.loop.config import RunConfig
 from heapgrasp.loop.metrics import Phase, aggregate
 from heapgrasp.loop.stats import success_interval
 
-__all__ = ["method_label", "summarize"]
+__all__ = ["leftover_summary", "method_label", "summarize"]
 
 
 def method_label(config: RunConfig) -> str:
@@ -38,6 +38,58 @@ def _stats(values: Sequence[float]) -> dict[str, float | None]:
         return {"mean": None, "std": None}
     a = np.asarray(values, dtype=np.float64)
     return {"mean": float(a.mean()), "std": float(a.std())}
+
+
+#: A leftover this close to another object (m) counts as touching it, this close to the
+#: scene cube's side border (m) as at the border.
+TOUCHING_M = 0.005
+NEAR_BORDER_M = 0.03
+
+
+def leftover_summary(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Where the objects of finished scene records went: removed, knocked out of the
+    workspace (the phases' ``knocked_out``), left on the table, and of those left how
+    many the hand could have taken on their true meshes (the records' ``leftovers``,
+    :mod:`heapgrasp.sim.leftovers`; a real run has none, and its counts of the left are
+    None). ``removal_ceiling``: (removed + graspable leftovers) / objects."""
+    total = sum(int(r["objects_total"]) for r in records)
+    removed = sum(p["outcome"] == "success" for r in records for p in r["phases"])
+    knocked = sum(len(p.get("knocked_out") or {}) for r in records for p in r["phases"])
+    out: dict[str, Any] = {
+        "objects_total": total,
+        "objects_removed": removed,
+        "removal_rate": removed / total if total else None,
+        "objects_knocked_out": knocked,
+        "objects_left": None,
+        "leftovers_graspable": None,
+        "graspable_left_rate": None,
+        "removal_ceiling": None,
+    }
+    if not records or not all("leftovers" in r for r in records):
+        return out
+    left = [o for r in records for o in r["leftovers"]]
+    graspable = sum(bool(o["graspable"]) for o in left)
+    out.update(
+        objects_left=len(left),
+        leftovers_graspable=graspable,
+        graspable_left_rate=graspable / total if total else None,
+        removal_ceiling=(removed + graspable) / total if total else None,
+        leftovers={
+            "lying": sum(not o["upright"] for o in left),
+            "touching": sum(
+                o["neighbour_m"] is not None and o["neighbour_m"] <= TOUCHING_M for o in left
+            ),
+            "near_border": sum(o["border_m"] < NEAR_BORDER_M for o in left),
+            "by_category": dict(sorted(Counter(o["category"] for o in left).items())),
+            "graspable_by_category": dict(
+                sorted(Counter(o["category"] for o in left if o["graspable"]).items())
+            ),
+            "ungraspable_by_name": dict(
+                sorted(Counter(o["name"] for o in left if not o["graspable"]).items())
+            ),
+        },
+    )
+    return out
 
 
 def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str, Any]:
@@ -78,6 +130,7 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
             sum(int(r["objects_total"]) for r in sel),
         )
         per_group[group].pop("per_category", None)
+        per_group[group]["objects"] = leftover_summary(sel)
     n, k = metrics["grasps_attempted"], metrics["grasps_succeeded"]
     return {
         "method": config.method,
@@ -88,6 +141,8 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         # 95 % Wilson interval of the success rate, in percent (heapgrasp.loop.stats).
         "grasp_success_ci95": [100 * x for x in success_interval(k, n)] if n else None,
         "per_scene_group": per_group,
+        # removed, knocked out, left, and the leftovers the hand could have taken
+        "objects": leftover_summary(done),
         "scenes_completed": len(done),
         # the objects the scenes were drawn from (RunConfig.object_dir) and those placed
         "object_dir": config.object_dir,

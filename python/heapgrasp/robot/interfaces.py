@@ -189,3 +189,9 @@ class SceneTruth(MaskSource, Protocol):
     def placed(self, object_id: int) -> None:
         """The object was released over the bin and has left the scene."""
         ...
+
+    def settle(self) -> dict[int, str | None]:
+        """Lets the scene come to rest after a grasp attempt and takes out of it the
+        objects that ended outside the workspace (VGN's protocol); returns those objects'
+        categories by id ("knocked out": they count neither as removed nor as left)."""
+        ...

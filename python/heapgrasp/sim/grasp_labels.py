@@ -28,7 +28,7 @@ direction and the fingers closing along y.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -234,17 +234,20 @@ def sample_grasps(
     yaws: int = 6,
     *,
     gripper: GripperGeometry = PANDA_HAND,
+    objects: Collection[int] | None = None,
 ) -> GraspSamples:
     """VGN's grasps on ``world``'s objects (see the module docstring).
 
     Surface points are drawn area-weighted over the triangles of every object's visual
-    mesh at its current pose whose outward normal has ``n_z >`` :data:`MIN_NORMAL_Z`.
-    A world without objects gives ``P = 0``.
+    mesh (or only of ``objects``, world ids) at its current pose whose outward normal has
+    ``n_z >`` :data:`MIN_NORMAL_Z`. A world without objects gives ``P = 0``.
     """
     if points < 0 or yaws < 1:
         raise ValueError(f"points must be >= 0 and yaws >= 1, got {points} and {yaws}")
     tris, norms, areas, owners = [], [], [], []
     for oid, obj in world.objects.items():
+        if objects is not None and oid not in objects:
+            continue
         v, f = _surface(str(obj.model.visual_mesh))
         pose = world.object_pose(oid)
         w = v @ pose[:3, :3].T + pose[:3, 3]

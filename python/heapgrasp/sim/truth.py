@@ -99,6 +99,10 @@ class SimTruth:
         if object_id in self.world.objects:
             self.world.remove(object_id)
 
+    def settle(self) -> dict[int, str | None]:
+        """:meth:`SimWorld.settle`: the objects knocked out of the scene cube, by id."""
+        return {obj.id: obj.category.value for obj in self.world.settle()}
+
 
 def top_down_grasp(world: SimWorld, object_id: int, width: float = PANDA_HAND.max_opening) -> Grasp:
     """A top-down grasp of an upright object from its true pose (a ground-truth baseline

@@ -299,12 +299,21 @@ class SimWorld:
                 self.remove(obj.id)
         self._settle()
 
-    def _remove_outside(self) -> None:
+    def _remove_outside(self) -> list[SimObject]:
         s = self.config.cube_size
+        removed = []
         for obj in list(self.objects.values()):
             x, y, z = self.object_pose(obj.id)[:3, 3]
             if not (0.0 <= x <= s and 0.0 <= y <= s and -0.01 <= z <= s):
-                self.remove(obj.id)
+                removed.append(self.remove(obj.id))
+        return removed
+
+    def settle(self) -> list[SimObject]:
+        """Lets the objects come to rest (at most ``settle_seconds`` of physics) and takes
+        out of the world those whose origin then lies outside the scene cube, as VGN's
+        simulation does after every grasp; returns the objects taken out."""
+        self._settle()
+        return self._remove_outside()
 
     # ------------------------------------------------------------------ objects
     def _mesh(self, model: ObjectModel) -> _Meshes:
