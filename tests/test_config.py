@@ -141,7 +141,13 @@ def test_settings_are_grouped_and_the_paper_preset_is_table_one_alone() -> None:
     assert paper.critic is None and paper.roof_radius == 0.0 and paper.target_radius == 0.0
     # the defaults are Table I plus the extensions measured to help
     on = {k for k, v in PAPER_EXTENSIONS.items() if c.group("extension")[k] != v}
-    assert on == {"roof_radius", "grasp_critic", "failed_grasp_radius", "target_radius"}
+    assert on == {
+        "roof_radius",
+        "grasp_critic",
+        "failed_grasp_radius",
+        "target_radius",
+        "look_again",
+    }
 
 
 def test_config_takes_a_file_or_a_preset_and_names_a_bad_one(

@@ -327,11 +327,50 @@ def test_the_sweep_ends_where_the_grasp_is_sure(tmp_path: Path, sure_at: int | N
 
 def test_a_phase_that_found_no_grasp_does_not_sweep(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
-    config = RunConfig(gamma2=0.0, stop_below=0.02, stop_confidence=0.95, sweep_degrees=180.0)
+    config = RunConfig(
+        gamma2=0.0, stop_below=0.02, stop_confidence=0.95, sweep_degrees=180.0, look_again=0
+    )
     result, _ = _plan_scripted(model, config, [[], [], []], view_level=0.05)
     waypoints = result.extra["waypoints"]
     assert len(waypoints) == 3 and not any(w.get("sweep") for w in waypoints)
     assert result.extra["target_grasp"] is None
+
+
+def test_a_phase_without_a_candidate_looks_again_from_the_turned_start(tmp_path: Path) -> None:
+    # gamma2 = 0: grasps are planned on the final grid of each look only. The first look
+    # finds nothing; the second, from the start turned by 180°, finds the grasp.
+    model = box_model(tmp_path, BOX)
+    config = RunConfig(gamma2=0.0, look_again=2)
+    result, _ = _plan_scripted(model, config, [[], [_candidate(0.15, 0.9)]])
+    assert result.grasp is not None
+    assert result.extra["target_grasp"]["position"][0] == pytest.approx(0.15)
+    (look,) = result.extra["looked_again"]
+    assert look["turn_deg"] == pytest.approx(180.0) and look["found"]
+    # L waypoints, the turned start, L waypoints again
+    waypoints = result.extra["waypoints"]
+    assert len(waypoints) == 2 * config.L + 1 and look["waypoints"] == config.L + 1
+    turned = waypoints[config.L]
+    assert turned["look_again"] == 1
+    # the side start lies on the scene's -y side; turned half a turn, on its +y side
+    centre = config.cube_size / 2
+    assert turned["position"][1] > centre + 0.3
+    assert turned["position"][0] == pytest.approx(centre, abs=1e-6)
+    # the same grid carved on: every frame of both looks counted (the camera path is
+    # every frame's position, then the grasp's)
+    assert result.extra["frames"] == len(result.camera_positions) - 1
+
+
+def test_a_phase_gives_up_after_its_looks_again(tmp_path: Path) -> None:
+    model = box_model(tmp_path, BOX)
+    result, _ = _plan_scripted(model, RunConfig(gamma2=0.0, look_again=1), [[], []])
+    assert result.grasp is None
+    assert [(x["turn_deg"], x["found"]) for x in result.extra["looked_again"]] == [
+        (pytest.approx(180.0), False)
+    ]
+    # the paper's rule: no candidate, no second look
+    result, _ = _plan_scripted(model, RunConfig(gamma2=0.0, look_again=0), [[]])
+    assert result.grasp is None and result.extra["looked_again"] == []
+    assert len(result.extra["waypoints"]) == RunConfig().L
 
 
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:
@@ -399,7 +438,9 @@ def _interrupt_after(n: int) -> Any:
 
 
 def test_an_interrupted_run_resumes_without_losing_scenes(tmp_path: Path) -> None:
-    config = RunConfig(method="no-vp", objects=2, scenes=3, layout="packed", max_attempts=3)
+    config = RunConfig(
+        method="no-vp", objects=2, scenes=3, layout="packed", max_attempts=3, look_again=0
+    )
     out = tmp_path / "run"
     with pytest.raises(KeyboardInterrupt):
         run(config, out, progress=False, on_scene=_interrupt_after(1))

@@ -46,7 +46,11 @@ def test_a_dry_run_checks_every_motion_and_sends_none(rig: Rig, tmp_path: Path) 
     assert not [c for c in rig.server.sent() if c.startswith("SET")]  # the gripper none
     assert result["motion_commands_sent"] == 0 and not result["moved"]
     kinds = [c["motion"] for c in result["checks"]]
-    assert kinds[:2] == ["park", "look"] and kinds.count("path") == METHOD["L"]
+    # L view waypoints; where no grasp was found, each look again adds the turned start
+    # and L more: every one a path checked
+    looks = len(result["looked_again"])
+    assert kinds[:2] == ["park", "look"] and kinds.count("path") == len(result["waypoints"])
+    assert len(result["waypoints"]) == METHOD["L"] * (1 + looks) + looks
     assert all(c["ok"] for c in result["checks"])
     saved = json.loads((tmp_path / "dry" / "dry_run.json").read_text())
     assert saved["checks"] == result["checks"]

@@ -246,6 +246,11 @@ class RunConfig:
     this many degrees, until a grasp reaches ``stop_confidence``. 0: never."""
     sweep_step: float = _ext(45.0, "ours")
     """Azimuth (degrees) between the rim sweep's waypoints."""
+    look_again: int = _ext(2, "ours")
+    """Where a phase finds no grasp candidate, look again up to this many times before
+    the protocol stops on "no candidate" (rule iii): from the start pose turned about
+    the scene (180°, then 90°, then 270°: :data:`heapgrasp.loop.phase.LOOK_AGAIN_TURNS`),
+    viewing as the phase did and carving the same grid. 0: stop at once (the paper)."""
 
     def __post_init__(self) -> None:
         def choice(name: str, options: tuple[str, ...]) -> None:
@@ -334,6 +339,12 @@ class RunConfig:
         between("sweep_degrees", 0.0, 360.0)
         between("sweep_step", 1.0, 180.0)
         between("move_weight", 0.0, 100.0)
+        if not (
+            isinstance(self.look_again, int)
+            and not isinstance(self.look_again, bool)
+            and 0 <= self.look_again <= 3
+        ):
+            raise ConfigError(f"look_again: must be an integer in [0, 3]; got {self.look_again!r}")
         if self.sigma is not None:
             between("sigma", 0.0, 100.0)
         for name in (
@@ -538,6 +549,7 @@ PAPER_EXTENSIONS: dict[str, Any] = {
     "move_weight": 0.0,
     "sweep_degrees": 0.0,
     "sweep_step": 45.0,
+    "look_again": 0,
 }
 
 

@@ -75,6 +75,7 @@ if TYPE_CHECKING:
     from heapgrasp.planning.view_network import NetworkViewScorer
 
 __all__ = [
+    "LOOK_AGAIN_TURNS",
     "MEMORY_TOLERANCE",
     "ORACLE_FRAMES",
     "SILHOUETTE_VIEWS",
@@ -91,6 +92,11 @@ F64 = npt.NDArray[np.float64]
 #: Silhouettes per hypothetical path when the oracle scores a candidate (eq. 14), evenly
 #: spaced along the path (``docs/experiments.md`` measures 10 against 40).
 ORACLE_FRAMES = 10
+#: Where a phase finds no grasp candidate, each look again (``RunConfig.look_again``)
+#: moves the camera to the start pose turned by the next of these angles about the
+#: scene's vertical axis (rad) — the far side first — and views from there as the phase
+#: did (eq. 16-19, or the fixed methods' waypoints turned alike), carving the same grid.
+LOOK_AGAIN_TURNS = (np.pi, np.pi / 2, 3 * np.pi / 2)
 #: Frames (evenly spaced over the phase) that check the trimmed hull against their
 #: silhouettes (:func:`heapgrasp.perception.roofs.keep_silhouettes`).
 SILHOUETTE_VIEWS = 24
@@ -177,18 +183,23 @@ class Pipeline:
             raise ConfigError(f"view_planner {cfg.view_planner!r} needs a view scorer")
 
     # ------------------------------------------------------------------ pieces
-    def initial_pose(self) -> F64:
-        """``p⁰`` (``RunConfig.start``), looking at the centre of the scene."""
+    def initial_pose(self, turn: float = 0.0) -> F64:
+        """``p⁰`` (``RunConfig.start``), looking at the centre of the scene; ``turn``
+        (rad) turns it about the scene's vertical axis (a look again,
+        :data:`LOOK_AGAIN_TURNS`)."""
         distance, theta, phi = self.config.start_pose
         start = dataclasses.replace(self.sphere, radius=distance)
-        return start.pose(phi, theta)
+        return start.pose(phi + turn, theta)
 
-    def fixed_waypoints(self) -> F64:
-        """Waypoints of a fixed-view method (or view planner)."""
+    def fixed_waypoints(self, turn: float = 0.0) -> F64:
+        """Waypoints of a fixed-view method (or view planner), from the start's azimuth
+        turned by ``turn`` (rad)."""
         cfg = self.config
         kind = cfg.view_planner if cfg.method == "heapgrasp" else cfg.method
         kind = {"no-vp": "circle", "vgn": "circle"}.get(kind, kind)
-        return fixed_waypoints(kind, self.sphere, L=cfg.L, phi0=cfg.start_pose[2], rng=self.rng)
+        return fixed_waypoints(
+            kind, self.sphere, L=cfg.L, phi0=cfg.start_pose[2] + turn, rng=self.rng
+        )
 
     def _perceive(self, frames: list[Frame]) -> float:
         t0 = time.perf_counter()
@@ -486,9 +497,9 @@ class Pipeline:
             self._sweep(phase, self.sweep)
         return target
 
-    def _fixed_views(self, phase: _PhaseLog) -> None:
-        """The fixed-view methods' waypoints."""
-        for goal in self.fixed_waypoints():
+    def _fixed_views(self, phase: _PhaseLog, turn: float = 0.0) -> None:
+        """The fixed-view methods' waypoints (turned by ``turn``, rad)."""
+        for goal in self.fixed_waypoints(turn):
             visited = self._visit(phase, goal, "fixed")
             if visited is None:
                 continue
@@ -500,6 +511,35 @@ class Pipeline:
                     "duration_s": duration,
                 }
             )
+
+    def _look(
+        self, phase: _PhaseLog, turn: float = 0.0
+    ) -> tuple[
+        list[GraspCandidate],
+        GraspCandidate | None,
+        GraspCandidate | None,
+        list[GraspCandidate] | None,
+        float,
+    ]:
+        """The phase's view waypoints (the fixed methods' turned by ``turn``, rad), then
+        grasp planning on the final grid. Returns the candidates, the top-scoring one,
+        the one to execute (None: no candidate), the candidates planned where viewing
+        stopped early (None: the final grid was planned again) and the final planning
+        time (s)."""
+        target = self._adaptive_views(phase) if self.adaptive else None
+        if not self.adaptive:
+            self._fixed_views(phase, turn)
+        t0 = time.perf_counter()
+        # Where viewing stopped early (or the sweep became sure) the grid is the one just
+        # planned there.
+        final = phase.final_candidates
+        cands = final if final is not None else self.grasp_candidates()
+        best, chosen = self._final_choice(cands, target)
+        final_latency = time.perf_counter() - t0
+        if self.observer is not None:
+            self.observer.target(chosen)
+        phase.compute += final_latency
+        return cands, best, chosen, final, final_latency
 
     def plan(self) -> PlanResult:
         """Runs one phase up to the grasp (see the module docstring)."""
@@ -514,19 +554,35 @@ class Pipeline:
         first = self.robot.arm.look(start)
         phase = _PhaseLog(first.cam2world, [first.cam2world[:3, 3]])
         phase.compute += self._perceive([first])
-        target = self._adaptive_views(phase) if self.adaptive else None
-        if not self.adaptive:
-            self._fixed_views(phase)
-        t0 = time.perf_counter()
-        # Where viewing stopped early (or the sweep became sure) the grid is the one just
-        # planned there.
-        final = phase.final_candidates
-        cands = final if final is not None else self.grasp_candidates()
-        best, chosen = self._final_choice(cands, target)
-        final_latency = time.perf_counter() - t0
-        if self.observer is not None:
-            self.observer.target(chosen)
-        phase.compute += final_latency
+        cands, best, chosen, final, final_latency = self._look(phase)
+        looks: list[dict[str, Any]] = []
+        for turn in LOOK_AGAIN_TURNS[: self.config.look_again]:
+            if chosen is not None:
+                break
+            # No candidate: the scene has not changed, so the grid is kept and carved
+            # further from the start turned about the scene, before the phase gives up.
+            n_waypoints = len(phase.waypoints)
+            turned = self.initial_pose(turn)
+            visited = self._visit(phase, turned, "look-again")
+            if visited is not None:
+                phase.waypoints.append(
+                    {
+                        "look_again": len(looks) + 1,
+                        "position": turned[:3, 3].tolist(),
+                        "frames": len(visited[0]),
+                        "duration_s": visited[1],
+                    }
+                )
+            phase.final_candidates, phase.stopped = None, None
+            cands, best, chosen, final, final_latency = self._look(phase, turn)
+            looks.append(
+                {
+                    "turn_deg": float(np.degrees(turn)),
+                    "waypoints": len(phase.waypoints) - n_waypoints,
+                    "final_candidates": len(cands),
+                    "found": chosen is not None,
+                }
+            )
         memory: dict[str, Any] | None = None
         if isinstance(self.perception, SilhouettePerception):
             memory = self.perception.memory_record
@@ -545,6 +601,7 @@ class Pipeline:
             "unreachable_waypoints": self.unreachable_waypoints,
             "target_grasp": _candidate_record(chosen),
             "best_grasp": _candidate_record(best),
+            "looked_again": looks,
         }
         if self.config.scene_memory:
             extra["memory"] = memory

@@ -186,6 +186,8 @@ def dry_run(
         "stopped": stopped,
         "waypoints": [] if plan is None else plan.extra.get("waypoints", []),
         "target_grasp": None if plan is None else plan.extra.get("target_grasp"),
+        # where the phase found no grasp and looked again (RunConfig.look_again)
+        "looked_again": [] if plan is None else plan.extra.get("looked_again", []),
         "wall_time_s": time.perf_counter() - t0,
         "rerun": str(out / "dry_run.rrd") if recorder is not None else None,
     }
