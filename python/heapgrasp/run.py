@@ -409,6 +409,18 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"{objects['objects_knocked_out']} knocked out of the workspace, of {total}; "
             f"removal ceiling {100 * objects['removal_ceiling']:.1f} %"
         )
+    looked = summary.get("looked_again") or {}
+    if looked.get("phases"):
+        lines.append(
+            f"looked again: {looked['phases']} phase(s) found no grasp at first; "
+            f"{looked['found']} found one on a look again"
+        )
+    ref = summary.get("reference_grid")
+    if ref:
+        lines.append(
+            f"Ŝ≥λ against the noise-free grid (Table V): MSE {_fmt(ref['mse_percent'])} % "
+            f"of the voxels, IoU {_fmt(ref['iou'])}"
+        )
     if summary.get("grasp_success_ci95"):
         lo, hi = summary["grasp_success_ci95"]
         lines.append(f"success rate, 95 % interval (Wilson): [{lo:.1f}, {hi:.1f}] %")

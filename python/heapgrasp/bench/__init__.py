@@ -16,7 +16,9 @@ its subcommand (and sets ``func``, the function that runs it, as a parser defaul
 * :mod:`heapgrasp.bench.viewsphere` -- ``heapgrasp bench viewsphere``: seed 001's
   active-vision benchmark (random, brick and BFS policies on the viewsphere);
 * :mod:`heapgrasp.bench.seg` -- ``heapgrasp bench seg``: the segmentation network's CPU
-  time per frame, per encoder.
+  time per frame, per encoder;
+* :mod:`heapgrasp.bench.paper_tables` -- ``heapgrasp bench noise`` and ``heapgrasp bench
+  clutter``: HEAPGrasp's Tables V (mask noise) and IV (clutter) in simulation.
 
 Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`.
 """
@@ -25,7 +27,7 @@ from __future__ import annotations
 
 import argparse
 
-from heapgrasp.bench import carve, compare, grasp, seg, sim, viewsphere, world
+from heapgrasp.bench import carve, compare, grasp, paper_tables, seg, sim, viewsphere, world
 
 __all__ = ["add_parser"]
 
@@ -48,8 +50,11 @@ def add_parser(
     """
     p = subparsers.add_parser(
         "bench",
-        help="performance benchmarks of the Rust core against Python baselines",
-        description="Performance benchmarks of the Rust core against Python baselines.",
+        help="benchmarks: the closed loop on the papers' protocols (sim, noise, clutter, "
+        "viewsphere), run comparisons, and the Rust core's speed",
+        description="Benchmarks: the closed loop on the papers' protocols (sim: Tables II/III; "
+        "noise: Table V; clutter: Table IV; viewsphere: the active-vision benchmark), "
+        "comparisons of finished runs, and the speed of the Rust core and the networks.",
     )
     benches = p.add_subparsers(
         dest="benchmark", metavar="BENCHMARK", title="benchmarks", required=True
@@ -61,4 +66,5 @@ def add_parser(
     compare.add_parser(benches)
     viewsphere.add_parser(benches)
     seg.add_parser(benches)
+    paper_tables.add_parsers(benches)
     return p

@@ -37,7 +37,8 @@ class PhaseObserver:
 
     def waypoint(self, pose: F64, kind: str) -> None:
         """The camera is about to move to a waypoint: ``view`` (eq. 18), ``fixed`` (a
-        baseline's) or ``sweep`` (the rim sweep)."""
+        baseline's), ``sweep`` (the rim sweep) or ``look-again`` (the start turned, where
+        the phase found no grasp: ``RunConfig.look_again``)."""
 
     def candidates(self, candidates: Sequence[GraspCandidate]) -> None:
         """Grasp candidates were planned on the current grid (eq. 15, best first)."""

@@ -61,7 +61,7 @@ from heapgrasp.loop.protocol import PlanResult
 from heapgrasp.perception.depth import DepthPerception
 from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.perception.segmenters import IdealSegmenter, MaskSource, NoisySegmenter, Segmenter
-from heapgrasp.perception.silhouette import SilhouettePerception
+from heapgrasp.perception.silhouette import SilhouettePerception, grid_agreement
 from heapgrasp.planning.critic import DEFAULT_CRITIC, GraspCritic
 from heapgrasp.planning.hull_check import HullCheck
 from heapgrasp.planning.selection import select_next_waypoint, select_target, top_scoring
@@ -148,6 +148,11 @@ class Pipeline:
     """The simulator's scene truth (the oracle's meshes, the object under a grasp)."""
     observer: PhaseObserver | None = None
     """Told what the phase does as it runs (:mod:`heapgrasp.loop.observe`)."""
+    reference_segmenter: Segmenter | None = None
+    """Silhouette methods: a second segmenter (in simulation the noise-free silhouettes)
+    whose grid is carved from the same frames, each phase afresh, and compared with the
+    run's ``Ŝ≥λ`` at the end of every phase (the phase's ``reference_grid``: Table V's
+    MSE and IoU). Not part of the method: it steers nothing and its time is not counted."""
 
     def __post_init__(self) -> None:
         cfg = self.config
@@ -172,6 +177,9 @@ class Pipeline:
                 memory=cfg.scene_memory,
                 memory_tolerance=MEMORY_TOLERANCE,
             )
+        self.reference: SilhouettePerception | None = None
+        if self.reference_segmenter is not None and not self.uses_depth:
+            self.reference = SilhouettePerception(self.frame, self.reference_segmenter, cfg.lam)
         self.adaptive = cfg.method == "heapgrasp" and cfg.view_planner in ("oracle", "network")
         self.early_stop = EarlyStop.from_config(cfg) if self.adaptive else None
         self.sweep = RimSweep.from_config(cfg) if self.adaptive else None
@@ -202,6 +210,8 @@ class Pipeline:
         )
 
     def _perceive(self, frames: list[Frame]) -> float:
+        if self.reference is not None:  # not the method's time: before the clock starts
+            self.reference.update(frames)
         t0 = time.perf_counter()
         if self.observer is None:
             self.perception.update(frames)
@@ -545,6 +555,8 @@ class Pipeline:
         """Runs one phase up to the grasp (see the module docstring)."""
         self.robot.arm.park()
         self.perception.reset()
+        if self.reference is not None:
+            self.reference.reset()
         self.joint_path_errors = 0
         self.unreachable_waypoints = 0
         start = self.initial_pose()
@@ -605,6 +617,12 @@ class Pipeline:
         }
         if self.config.scene_memory:
             extra["memory"] = memory
+        if self.reference is not None:
+            lam = self.config.lam
+            extra["reference_grid"] = grid_agreement(
+                self.perception.grid.high_confidence(lam) > 0,
+                self.reference.grid.high_confidence(lam) > 0,
+            )
         if chosen is None:
             if self.observer is not None:
                 self.observer.phase_ended(None)
@@ -811,10 +829,12 @@ def build_pipeline(
     critic: GraspCritic | None = None,
     observer: PhaseObserver | None = None,
     seed: int = 0,
+    reference_segmenter: Segmenter | None = None,
 ) -> Pipeline:
     """A :class:`Pipeline` for ``config`` on ``robot``; any stage passed explicitly
     replaces the configured one. The oracle view planner needs ``truth``; ``observer``
-    is told what each phase does (:mod:`heapgrasp.loop.observe`)."""
+    is told what each phase does (:mod:`heapgrasp.loop.observe`);
+    ``reference_segmenter`` carves a grid to compare with (:attr:`Pipeline.reference_segmenter`)."""
     if view_scorer is None:
         view_scorer = make_view_scorer(config)
     if isinstance(view_scorer, OracleViewScorer) and truth is None:
@@ -834,4 +854,5 @@ def build_pipeline(
         critic=critic if critic is not None else make_critic(config),
         truth=truth,
         observer=observer,
+        reference_segmenter=reference_segmenter,
     )

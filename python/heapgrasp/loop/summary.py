@@ -46,6 +46,17 @@ TOUCHING_M = 0.005
 NEAR_BORDER_M = 0.03
 
 
+def _reference(phases: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
+    refs = [p["reference_grid"] for p in phases if p.get("reference_grid")]
+    if not refs:
+        return None
+    return {
+        "phases": len(refs),
+        "mse_percent": _stats([float(r["mse_percent"]) for r in refs]),
+        "iou": _stats([float(r["iou"]) for r in refs if r.get("iou") is not None]),
+    }
+
+
 def leftover_summary(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """Where the objects of finished scene records went: removed, knocked out of the
     workspace (the phases' ``knocked_out``), left on the table, and of those left how
@@ -159,6 +170,17 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         "view_waypoints_per_phase": _stats([len(p.get("waypoints", [])) for p in phase_dicts]),
         # Phases whose viewing ended before L waypoints (RunConfig.stop_below).
         "early_stops": sum(1 for p in phase_dicts if p.get("stopped_early")),
+        # Phases that found no candidate at first and looked again (RunConfig.look_again),
+        # and how many of those then found one.
+        "looked_again": {
+            "phases": sum(1 for p in phase_dicts if p.get("looked_again")),
+            "found": sum(
+                1 for p in phase_dicts if p.get("looked_again") and p["looked_again"][-1]["found"]
+            ),
+        },
+        # With pixel-flip noise: Ŝ≥λ against the noise-free grid of the same frames at the
+        # end of each phase (Table V), None without noise.
+        "reference_grid": _reference(phase_dicts),
         "config": config.to_dict(),
         "phases": phase_dicts,
     }

@@ -19,7 +19,7 @@ from heapgrasp.perception.frames import Frame
 from heapgrasp.perception.roofs import SilhouetteView, keep_silhouettes, trim_roofs
 from heapgrasp.perception.segmenters import Segmenter
 
-__all__ = ["SilhouettePerception"]
+__all__ = ["SilhouettePerception", "grid_agreement"]
 
 F32 = npt.NDArray[np.float32]
 F64 = npt.NDArray[np.float64]
@@ -220,3 +220,22 @@ class SilhouettePerception:
             self.grid.voxel_size,
             [self.views[i] for i in pick],
         )
+
+
+def grid_agreement(measured: npt.ArrayLike, reference: npt.ArrayLike) -> dict[str, float | None]:
+    """How far an occupancy grid is from a reference grid of the same shape (HEAPGrasp
+    Table V: the high-confidence grids of noisy and noise-free masks):
+    ``mse_percent``, the mean squared difference of the binary grids in percent of the
+    voxels (Table V's MSE column, whose 1.63 at an IoU of 0.03 fits this scale: a 5-object
+    hull fills ~1.6 % of a 40³ grid), and ``iou``, intersection over union of the
+    occupied voxels (None where both are empty)."""
+    a = np.asarray(measured, dtype=bool)
+    b = np.asarray(reference, dtype=bool)
+    if a.shape != b.shape:
+        raise ValueError(f"grids of shapes {a.shape} and {b.shape} cannot be compared")
+    union = int(np.count_nonzero(a | b))
+    inter = int(np.count_nonzero(a & b))
+    return {
+        "mse_percent": 100.0 * float(np.count_nonzero(a ^ b)) / max(a.size, 1),
+        "iou": inter / union if union else None,
+    }

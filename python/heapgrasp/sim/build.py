@@ -12,6 +12,7 @@ from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.observe import PhaseObserver
 from heapgrasp.loop.phase import Pipeline, build_pipeline, make_segmenter
+from heapgrasp.perception.segmenters import IdealSegmenter
 from heapgrasp.planning.critic import GraspCritic
 from heapgrasp.planning.views import ViewScorer
 from heapgrasp.planning.volumes import GraspPlanner
@@ -166,6 +167,8 @@ def sim_pipeline(
         config,
         robot,
         segmenter=make_segmenter(config, truth, seed),
+        # with pixel-flip noise, the noise-free grid of the same frames (Table V)
+        reference_segmenter=IdealSegmenter(truth) if config.noise > 0 else None,
         truth=truth,
         grasp_planner=grasp_planner,
         view_scorer=view_scorer,
