@@ -151,6 +151,7 @@ class GraspBenchConfig:
             sigma=self.sigma,
             nms_window=self.nms_window,
             roof_radius=self.roof_radius,
+            look_again=0,  # one circle: the grid this benchmark compares
         )
 
 

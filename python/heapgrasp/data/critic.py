@@ -122,6 +122,8 @@ class CriticDataConfig:
             objects=self.objects,
             seed=self.seed,
             grasp_critic=self.critic,
+            # the phases as the critic's data has always sampled them: one look each
+            look_again=0,
             **start,  # type: ignore[arg-type]
         )
         return config.replace(dict(self.overrides), source="critic data --set")

@@ -56,7 +56,8 @@ def dataset_objects(split: str) -> list[str]:
 def run_config(split: str, start: str, L: int, method: str = "heapgrasp") -> Any:
     """The loop's settings of a dataset's scene: ``method`` from ``start`` with ``L``
     view waypoints, everything else the defaults (the oracle view planner, which needs
-    no weights, where ``method`` plans views; no grasp critic)."""
+    no weights, where ``method`` plans views; no grasp critic; no look again, so that a
+    phase plans grasps once, on the grid the dataset records)."""
     from heapgrasp.loop.config import RunConfig
 
     return RunConfig(
@@ -66,6 +67,7 @@ def run_config(split: str, start: str, L: int, method: str = "heapgrasp") -> Any
         start=start,
         L=L,
         grasp_critic="none",
+        look_again=0,
     )
 
 
