@@ -172,7 +172,8 @@ def test_inputs_are_what_the_loop_feeds_the_network(
     library = object_library(RunConfig())
     # the VGN baseline's phase in a fresh world of the scene: its TSDF
     scene, _ = draw_scene(TSDF, 0, library)
-    net = {"grasp_planner": "network", "start": scene.start, "split": "train"}
+    # one look: a spy plans nothing, and the dataset's phases do not look again
+    net = {"grasp_planner": "network", "start": scene.start, "split": "train", "look_again": 0}
     spy = _Spy("tsdf")
     with scene.world(library, TSDF) as world:
         run = RunConfig(method="vgn", **net)
@@ -185,6 +186,7 @@ def test_inputs_are_what_the_loop_feeds_the_network(
         assert int(d["scene_seed"][0]) == scene.world_seed
         seed = scene.world_seed
         net = {"grasp_planner": "network", "start": scene.start, "split": "train"}
+        net["look_again"] = 0
         # the silhouette method's grid where it plans grasps
         spy = _Spy("occupancy")
         with scene.world(library, CONFIG) as world:
