@@ -33,6 +33,11 @@ def test_tables_from_a_small_run(tmp_path: Path) -> None:
     assert "| no-vp (antipodal grasps, critic) |" in text and "92.7 (458/494)" in text
     assert (tmp_path / "no-vp" / "results.json").exists()
     assert "| Success (%) | 95 % CI |" in text and "| Grasp planning / call (ms) |" in text
+    # objects removed beside those left, the graspable ones among them, and the ceiling
+    assert "| Removed | Left (graspable) | Ceiling (%) |" in text
+    objects = summaries["no-vp"]["objects"]
+    left = f"| {objects['objects_left']} ({objects['leftovers_graspable']})"
+    assert left in text and f"| {100 * objects['removal_ceiling']:.1f} |" in text
     saved = json.loads((tmp_path / "summary.json").read_text())["no-vp"]
     # one grasp-planning call per phase's end and per waypoint that planned grasps
     phases = json.loads((tmp_path / "no-vp" / "results.json").read_text())["phases"]
