@@ -24,7 +24,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-__all__ = ["build_parser", "main"]
+__all__ = ["OPTIONAL_MODULES", "build_parser", "install_hint", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -71,6 +71,42 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: The optional modules a command may need, and the extra that installs each
+#: (``pip install 'heapgrasp[EXTRA]'``); None: a benchmark's own baseline, by name.
+OPTIONAL_MODULES: dict[str, str | None] = {
+    "torch": "train",
+    "onnx": "train",
+    "onnxscript": "train",
+    "safetensors": "train",
+    "sklearn": "train",
+    "segmentation_models_pytorch": "train",
+    "cv2": "robot",
+    "rtde_control": "robot",
+    "rtde_receive": "robot",
+    "pyrealsense2": "robot",
+    "tomlkit": "robot",
+    "rerun": "viz",
+    "ray": "ray",
+    "numba": None,
+    "open3d": None,
+}
+
+
+def install_hint(exc: ImportError) -> str:
+    """One line for a missing module: the error's own message where it already says how
+    to install it, else the module and the extra (:data:`OPTIONAL_MODULES`) or package
+    that brings it."""
+    text = str(exc)
+    if "pip install" in text:
+        return text
+    root = (exc.name or "").split(".")[0]
+    if root in OPTIONAL_MODULES:
+        extra = OPTIONAL_MODULES[root]
+        how = f"pip install 'heapgrasp[{extra}]'" if extra else f"pip install {root}"
+        return f"this command needs {root}, which is not installed: {how}"
+    return f"{text}: reinstall heapgrasp (pip install .), which brings its dependencies"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Runs the ``heapgrasp`` command line.
 
@@ -83,7 +119,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     -------
     int
         The exit status: 0 on success, 1 when a command fails (for benchmarks: a result
-        check failed), 2 on invalid arguments; ``--help`` and ``--version`` return 0.
+        check failed), 2 on invalid arguments or a missing optional dependency (one line
+        naming the extra that installs it, :func:`install_hint`); ``--help`` and
+        ``--version`` return 0.
     """
     from heapgrasp.loop.config import ConfigError
 
@@ -101,6 +139,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except ConfigError as exc:  # a configuration error exits 2 in every command
         print(f"heapgrasp: error: {exc}", file=sys.stderr)
+        return 2
+    except ImportError as exc:  # a missing optional dependency: one line, exit 2
+        print(f"heapgrasp: error: {install_hint(exc)}", file=sys.stderr)
         return 2
     except (OSError, ValueError, RuntimeError) as exc:
         print(f"heapgrasp: error: {exc}", file=sys.stderr)

@@ -199,9 +199,6 @@ def _calibrate(args: argparse.Namespace) -> int:
 def _board(args: argparse.Namespace) -> int:
     from heapgrasp.robot.calibration import CharucoBoard
 
-    board = CharucoBoard()
-    per_square = round(board.square / 0.0254 * args.dpi)
-    image = board.image(pixels_per_square=per_square, margin=per_square // 2)
     try:
         import cv2
     except ImportError:
@@ -209,7 +206,10 @@ def _board(args: argparse.Namespace) -> int:
             "heapgrasp: error: writing the board needs OpenCV: pip install 'heapgrasp[robot]'",
             file=sys.stderr,
         )
-        return 1
+        return 2
+    board = CharucoBoard()
+    per_square = round(board.square / 0.0254 * args.dpi)
+    image = board.image(pixels_per_square=per_square, margin=per_square // 2)
     if not cv2.imwrite(str(args.path), image):
         print(f"heapgrasp: error: cannot write {args.path}", file=sys.stderr)
         return 1
