@@ -176,6 +176,26 @@ def test_the_paths_config_keeps_test_objects_out_of_training():
         vp.ViewspherePathsConfig(tries=0)
 
 
+def test_the_paths_dataset_resumes_and_extends_its_last_shard(tmp_path: Path):
+    # The objects are a tuple in the config and a list in the manifest: the same
+    # command run twice resumes; more scenes in the same shard write it again, whole.
+    config = vp.ViewspherePathsConfig(scenes=1, objects=("prism_6x6x6",), tries=1, path_steps=2)
+    first = generate(config, tmp_path, progress=False)
+    shard = tmp_path / "shard-00000.npz"
+    before = shard.read_bytes()
+    again = generate(config, tmp_path, progress=False)
+    assert again["complete"] and shard.read_bytes() == before
+    bigger = vp.ViewspherePathsConfig(**{**config.__dict__, "scenes": 2})
+    more = generate(bigger, tmp_path, progress=False)
+    assert first["shards"]["shard-00000.npz"]["scenes"] == 1
+    assert more["shards"]["shard-00000.npz"]["scenes"] == 2
+    assert more["samples"] + more["dropped"] == 2
+    with pytest.raises(ValueError, match="tries: 1 there, 2 asked"):
+        generate(
+            vp.ViewspherePathsConfig(**{**config.__dict__, "tries": 2}), tmp_path, progress=False
+        )
+
+
 def test_a_real_scene_is_labelled_with_a_shortest_first_direction():
     config = vp.ViewspherePathsConfig(objects=("prism_6x6x6",), tries=1, path_steps=2)
     samples = [s for s in (vp.scene_sample(config, i) for i in range(3)) if s is not None]

@@ -210,6 +210,17 @@ def read_manifest(out: Path, spec: DatasetSpec) -> dict[str, Any]:
     return manifest
 
 
+def _holds(out: Path, config: ShardedConfig, shard: int) -> bool:
+    """Whether ``out`` holds ``shard`` whole: its file, with as many scenes as the shard
+    has now (the last shard of a smaller dataset that is being extended has fewer, and is
+    written again)."""
+    path = shard_path(out, shard)
+    if not path.exists():
+        return False
+    with np.load(path) as data:
+        return int(data["scenes"]) == len(config.shard_scenes(shard))
+
+
 def _shard_entry(path: Path, spec: DatasetSpec) -> dict[str, Any]:
     with np.load(path) as data:
         entry = {
@@ -267,7 +278,8 @@ def _check_compatible(
         return
     manifest = read_manifest(out, spec)
     old = manifest["config"]
-    mine = {**config.identity(), **spec.settings()}
+    # as the manifest holds them: JSON's lists for tuples
+    mine = json.loads(json.dumps({**config.identity(), **spec.settings()}))
     diff = [f"{k}: {old.get(k)!r} there, {mine[k]!r} asked" for k in mine if old.get(k) != mine[k]]
     if manifest.get("objects") != objects:
         diff.append(f"objects: {len(manifest.get('objects') or [])} there, {len(objects)} asked")
@@ -304,7 +316,7 @@ def generate(
     out.mkdir(parents=True, exist_ok=True)
     objects = config.object_names()
     _check_compatible(out, spec, config, objects)
-    todo = [s for s in range(config.shards) if not shard_path(out, s).exists()]
+    todo = [s for s in range(config.shards) if not _holds(out, config, s)]
     _write_manifest(out, spec, config, objects, started)
     bar = tqdm(
         total=config.scenes,
