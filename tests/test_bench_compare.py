@@ -87,6 +87,47 @@ def test_compare_refuses_what_it_cannot_compare(
     assert "level must be in (0, 1), got 1.5" in capsys.readouterr().err
 
 
+def _world(records_file: Path, objects: int, category: str) -> None:
+    """Gives every record of a run the scene a run of ``objects`` ``category`` objects
+    would have placed."""
+    records = [json.loads(x) for x in records_file.read_text().splitlines()]
+    for r in records:
+        if "error" in r:
+            continue
+        r["category"] = category
+        r["objects_requested"] = objects
+        r["world"] = {
+            "layout": "pile",
+            "workspace": {"origin": [0.0, 0.0, 0.0], "size": 0.3},
+            "objects": [
+                {"id": i + 1, "name": f"procedural/box_{i:02d}", "category": category}
+                for i in range(objects)
+            ],
+        }
+    records_file.write_text("".join(json.dumps(r) + "\n" for r in records))
+
+
+def test_compare_refuses_runs_on_other_scenes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a = _write_run(tmp_path / "a", {1: [("success", 1.0)], 2: [("success", 1.0)]})
+    b = _write_run(tmp_path / "b", {1: [("success", 2.0)], 2: [("collision", 2.0)]})
+    same = _write_run(tmp_path / "same", {1: [("empty", 2.0)], 2: [("collision", 2.0)]})
+    _world(a / "scenes.jsonl", 3, "mixed")
+    _world(same / "scenes.jsonl", 3, "mixed")
+    _world(b / "scenes.jsonl", 5, "transparent")
+    assert compare_runs(a, same)["different_scenes"] == []
+    with pytest.raises(CompareError, match=r"2 of the 2 common seeds hold different scenes"):
+        compare_runs(a, b)
+    assert main(["bench", "compare", str(a), str(b)]) == 2
+    err = capsys.readouterr().err
+    assert "seed 1:" in err and "'mixed' in A, 'transparent' in B" in err
+    assert "--different-scenes" in err
+    # asked for, compared anyway and said so
+    assert main(["bench", "compare", str(a), str(b), "--different-scenes"]) == 0
+    assert "WARNING: 2 paired seed(s) hold different scenes" in capsys.readouterr().out
+
+
 def test_compare_pools_runs_on_other_seeds(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -2,7 +2,9 @@
 
 ``A`` and ``B`` are run directories holding ``scenes.jsonl`` (``heapgrasp run --out``,
 or one method's folder of ``heapgrasp bench sim``), e.g. a method before and after a
-change, or two methods. Scenes are matched by their seed. Prints, for each run, the
+change, or two methods. Scenes are matched by their seed, and a seed must hold the same
+scene in both (objects, category, layout: else it refuses, unless
+``--different-scenes``). Prints, for each run, the
 success rate with its 95 % Wilson interval, the objects removed and the mean trajectory;
 then A's success rate minus B's with a paired bootstrap interval over the common scenes
 (:mod:`heapgrasp.loop.stats`), and A's mean trajectory as a share of B's. ``--json FILE``
@@ -44,21 +46,39 @@ from heapgrasp.loop.stats import (
     success_interval,
 )
 
-__all__ = ["CompareError", "add_parser", "compare_runs", "format_comparison"]
+__all__ = ["CompareError", "add_parser", "compare_runs", "format_comparison", "scene_signature"]
 
 
 class CompareError(ValueError):
     """A run directory cannot be compared (missing, empty, or no scene in common)."""
 
 
+def scene_signature(record: dict[str, Any]) -> dict[str, Any]:
+    """What makes a scene record's scene the one it is, beyond its seed: the scene group,
+    the objects asked for, the layout and workspace, and the objects placed (name and
+    optical category, by id) — what two runs must share for their scenes to be paired."""
+    world = record.get("world") or {}
+    return {
+        "group": record.get("category"),
+        "objects_requested": record.get("objects_requested"),
+        "layout": world.get("layout"),
+        "workspace": world.get("workspace"),
+        "objects": [
+            [o.get("id"), o.get("name"), o.get("category")] for o in world.get("objects", [])
+        ],
+    }
+
+
 def _phases(
     run_dirs: Sequence[Path],
-) -> tuple[list[dict[str, Any]], list[float], list[dict[str, Any]]]:
-    """Outcomes keyed by scene seed, the trajectory of every attempted grasp, and the
-    phase records themselves, over one or more runs whose seeds do not overlap."""
+) -> tuple[list[dict[str, Any]], list[float], list[dict[str, Any]], dict[int, dict[str, Any]]]:
+    """Outcomes keyed by scene seed, the trajectory of every attempted grasp, the phase
+    records themselves and each seed's :func:`scene_signature`, over one or more runs
+    whose seeds do not overlap."""
     from heapgrasp.run import SCENES_FILE, load_records
 
     phases, lengths, records_out = [], [], []
+    signatures: dict[int, dict[str, Any]] = {}
     owner: dict[int, Path] = {}
     seen: set[Path] = set()
     for run_dir in run_dirs:
@@ -77,16 +97,17 @@ def _phases(
                 raise CompareError(
                     f"seed {scene} is in both {first} and {run_dir}: pool runs on other scenes"
                 )
+            signatures[scene] = scene_signature(r)
             left = r.get("objects_total")
             for p in r["phases"]:
                 phases.append({"scene": scene, "outcome": p["outcome"]})
                 # The objects on the table when the phase began (for the breakdown).
                 records_out.append({**p, "objects_left": left} if isinstance(left, int) else p)
-                if isinstance(left, int) and p["outcome"] == "success":
-                    left -= 1
+                if isinstance(left, int):
+                    left -= int(p["outcome"] == "success") + len(p.get("knocked_out") or {})
                 if p.get("grasp_position") is not None and p.get("trajectory_length_m") is not None:
                     lengths.append(float(p["trajectory_length_m"]))
-    return phases, lengths, records_out
+    return phases, lengths, records_out, signatures
 
 
 def _dirs(runs: Path | str | Sequence[Path | str]) -> list[Path]:
@@ -104,14 +125,22 @@ def compare_runs(
     level: float = 0.95,
     resamples: int = 10_000,
     seed: int = 0,
+    different_scenes: bool = False,
 ) -> dict[str, Any]:
     """The comparison of run directories ``a`` and ``b`` (see the module docstring); each
-    may be a sequence of runs on disjoint seeds, pooled."""
+    may be a sequence of runs on disjoint seeds, pooled.
+
+    Scenes are paired by seed, and a seed must hold the same scene in both
+    (:func:`scene_signature`: scene group, objects asked for, layout, the objects placed):
+    runs with other scene settings raise :class:`CompareError` naming the first seeds
+    that differ and how, unless ``different_scenes``, which compares them anyway and
+    lists those seeds under ``different_scenes`` in the result."""
     runs: dict[str, Any] = {}
     counts = {}
+    signatures: dict[str, dict[int, dict[str, Any]]] = {}
     for name, given in (("a", a), ("b", b)):
         paths = _dirs(given)
-        phases, lengths, records = _phases(paths)
+        phases, lengths, records, signatures[name] = _phases(paths)
         per_scene = scene_counts(phases)
         counts[name] = per_scene
         k = sum(c[0] for c in per_scene.values())
@@ -132,6 +161,17 @@ def compare_runs(
         raise CompareError(
             f"{runs['a']['path']} and {runs['b']['path']} have no scene (seed) in common"
         )
+    differ = sorted(s for s in common if signatures["a"][s] != signatures["b"][s])
+    if differ and not different_scenes:
+        first = differ[0]
+        sa, sb = signatures["a"][first], signatures["b"][first]
+        what = ", ".join(f"{k}: {sa[k]!r} in A, {sb[k]!r} in B" for k in sa if sa[k] != sb.get(k))
+        raise CompareError(
+            f"{len(differ)} of the {len(common)} common seeds hold different scenes in the "
+            f"two runs (seed {first}: {what}); compare runs made with the same scene "
+            "settings (objects, category, layout, object set), or pass --different-scenes "
+            "to compare them anyway"
+        )
     diff = paired_success_difference(
         counts["a"], counts["b"], level=level, resamples=resamples, seed=seed
     )
@@ -141,6 +181,7 @@ def compare_runs(
         "level": level,
         "success_difference": diff,
         "trajectory_ratio": ta / tb if ta is not None and tb else None,
+        "different_scenes": differ,
     }
 
 
@@ -172,6 +213,11 @@ def format_comparison(c: dict[str, Any], *, details: bool = False) -> str:
         )
     if c["trajectory_ratio"] is not None:
         lines.append(f"trajectory A / B: {100 * c['trajectory_ratio']:.1f} %")
+    if c.get("different_scenes"):
+        lines.append(
+            f"WARNING: {len(c['different_scenes'])} paired seed(s) hold different scenes in "
+            "A and B (--different-scenes)"
+        )
     lines.append(f"A: {c['a']['path']}\nB: {c['b']['path']}")
     if details:
         for name in ("a", "b"):
@@ -213,6 +259,12 @@ def add_parser(
         "waypoints, or all), per count of candidates and of objects left, with the "
         "failure outcomes, and its collisions by what and which part of the hand touched",
     )
+    p.add_argument(
+        "--different-scenes",
+        action="store_true",
+        help="compare even where a seed holds a different scene in A and B (other objects, "
+        "category or layout); refused without it",
+    )
     p.add_argument("--json", type=Path, help="also write the comparison to this file")
     p.set_defaults(func=command)
     return p
@@ -226,6 +278,7 @@ def command(args: argparse.Namespace) -> int:
             [args.b, *(pair[1] for pair in args.pool)],
             level=args.level,
             resamples=args.resamples,
+            different_scenes=args.different_scenes,
         )
     except ValueError as exc:  # CompareError, and bad --level / --resamples
         print(f"heapgrasp bench compare: {exc}", file=sys.stderr)
