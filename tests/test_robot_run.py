@@ -272,3 +272,17 @@ def test_robot_board_writes_a_printable_board_the_detector_finds(tmp_path: Path)
     )
     _, ids, _, _ = cv2.aruco.CharucoDetector(board.cv()).detectBoard(image)
     assert ids is not None and len(ids) == (board.squares_x - 1) * (board.squares_y - 1)
+
+
+def test_replay_refuses_a_simulated_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from heapgrasp.loop.config import RunConfig
+    from heapgrasp.run import run
+
+    out = tmp_path / "sim"
+    config = RunConfig(method="no-vp", objects=1, layout="packed", max_attempts=1, look_again=0)
+    run(config, out, progress=False)
+    before = sorted(p.name for p in out.iterdir())
+    assert main(["replay", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "no recorded frames" in err and "robot run --execute" in err
+    assert sorted(p.name for p in out.iterdir()) == before  # no replay.json

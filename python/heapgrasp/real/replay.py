@@ -146,6 +146,13 @@ def replay(
     saved = rundir.read_config()
     if saved is None:
         raise RobotConfigError(f"{rundir.path}: no config.json; is this a `robot run` directory?")
+    if not (rundir.path / "frames").is_dir():
+        raise RobotConfigError(
+            f"{rundir.path}: no recorded frames (frames/): replay reruns a robot run "
+            "(`heapgrasp robot run --execute --out DIR`), which records every frame; a "
+            "simulated run (`heapgrasp run`) records none — run it again with other "
+            "settings instead"
+        )
     config = saved.replace(dict(changes or {}), source="--set")
     records = rundir.records()
     frames_dir = rundir.path / "frames"
