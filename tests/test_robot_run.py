@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -27,6 +28,7 @@ from heapgrasp.real.setup import load
 from heapgrasp.robot.calibration import CharucoBoard, render_board
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.errors import ProtectiveStop, RobotConfigError
+from heapgrasp.robot.hardware import Drivers, HardwareRobot
 
 METHOD = {"L": 2}
 
@@ -183,11 +185,32 @@ def test_robot_init_writes_a_template_that_loads(
     assert main(["robot", "init", str(path)]) == 0
     assert path.read_text() == ROBOT_TOML
     config = RobotConfig.load(path)
-    assert config.arm.host == "192.168.1.10" and not config.calibration.done
+    # no address filled in for the user: nothing is contacted that they did not name
+    assert config.arm.host == "" and config.gripper_host == "" and not config.calibration.done
     assert main(["robot", "init", str(path)]) == 2  # never overwritten silently
     # a run on it names what is missing before touching any device
     assert main(["robot", "run", "--config", str(path), "--out", str(tmp_path / "o")]) == 2
     assert "segmentation" in capsys.readouterr().err
+    # so does the check, for the arm and the gripper, and connects to neither
+    contacted: list[str] = []
+
+    def touch(device: str) -> Any:
+        contacted.append(device)
+        raise RuntimeError(f"{device} contacted")
+
+    drivers = Drivers(
+        arm=lambda host, tcp: touch("arm"),
+        gripper=lambda robot: touch("gripper"),
+        camera=lambda settings: touch("camera"),
+    )
+    items = {i["item"]: i for i in check(path, drivers=drivers)}
+    assert contacted == ["camera"]  # the camera is a USB device, no address
+    contacted.clear()
+    assert not items["arm"]["ok"] and "[arm] host is empty" in items["arm"]["detail"]
+    assert not items["gripper"]["ok"] and "set [arm] host" in items["gripper"]["detail"]
+    with pytest.raises(RobotConfigError, match=r"\[arm\] host is empty"):
+        HardwareRobot.connect(config, drivers)
+    assert contacted == []
 
 
 class BoardCamera(SceneCamera):

@@ -24,7 +24,7 @@ ROBOT_TOML = """\
 # [calibration] below.
 
 [arm]                       # UR e-Series over RTDE (remote-control mode on the pendant)
-host = "192.168.1.10"
+host = ""                   # your UR controller's address: set it before `robot check`
 tcp = [0.0, 0.0, 0.2, 0.0, 0.0, 0.0]   # TCP in the flange frame [m, rotation vector]
 park = [0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0]   # joints [rad], out of the view
 servo_rate = 125.0          # Hz at which camera paths are streamed (servoL)

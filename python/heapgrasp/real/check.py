@@ -91,6 +91,7 @@ def check(config_path: str | Path, *, drivers: Drivers | None = None) -> list[di
     items.append(_item("camera", camera))
 
     def gripper() -> str:
+        robot.require_hosts(("gripper",))
         g = d.gripper(robot)
         g.connect()
         try:
@@ -103,6 +104,7 @@ def check(config_path: str | Path, *, drivers: Drivers | None = None) -> list[di
     items.append(_item("gripper", gripper))
 
     def arm() -> str:
+        robot.require_hosts(("arm",))
         control, receive = d.arm(robot.arm.host, robot.arm.tcp)
         try:
             tcp = pose_from_rtde(receive.getActualTCPPose())

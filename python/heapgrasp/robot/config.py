@@ -386,3 +386,19 @@ class RobotConfig:
     def gripper_host(self) -> str:
         """The gripper's address (the arm's unless set)."""
         return self.gripper.host or self.arm.host
+
+    def require_hosts(self, devices: tuple[str, ...] = ("arm", "gripper")) -> None:
+        """:class:`RobotConfigError` naming the key to set where ``devices`` (``arm``,
+        ``gripper``) have no address, before anything is contacted: nothing is connected
+        to that the user did not name."""
+        if "arm" in devices and not self.arm.host.strip():
+            raise RobotConfigError(
+                f"{self.source}: [arm] host is empty: set it to your UR controller's "
+                "address (the gripper's URCap answers there too, unless [gripper] host "
+                "is set)"
+            )
+        if "gripper" in devices and not self.gripper_host.strip():
+            raise RobotConfigError(
+                f"{self.source}: the gripper has no address: set [arm] host to your UR "
+                "controller's (its URCap serves the gripper), or [gripper] host"
+            )

@@ -90,6 +90,7 @@ class HardwareRobot:
     ) -> HardwareRobot:
         """Opens the camera, the gripper (activated unless ``activate`` is False) and the
         arm; whatever was opened is closed again if a later device fails."""
+        config.require_hosts()  # before any device is touched
         d = drivers or Drivers()
         opened: list[Callable[[], None]] = []
         try:
