@@ -191,6 +191,11 @@ def test_robot_init_writes_a_template_that_loads(
     # a run on it names what is missing before touching any device
     assert main(["robot", "run", "--config", str(path), "--out", str(tmp_path / "o")]) == 2
     assert "segmentation" in capsys.readouterr().err
+    executed = ["robot", "run", "--config", str(path), "--out", str(tmp_path / "x")]
+    assert main([*executed, "--execute", "--objects", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "segmentation" in err and f"nothing was written to {tmp_path / 'x'}" in err
+    assert "kept in" not in err
     # so does the check, for the arm and the gripper, and connects to neither
     contacted: list[str] = []
 

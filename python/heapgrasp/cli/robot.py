@@ -122,7 +122,11 @@ def _run(args: argparse.Namespace) -> int:
         )
         record = session.execute(args.config, args.out, objects=args.objects, resume=args.resume)
     except RobotError as exc:
-        print(f"heapgrasp: the run's records and frames are kept in {args.out}", file=sys.stderr)
+        out = Path(args.out)
+        if out.is_dir() and any(out.iterdir()):
+            print(f"heapgrasp: the run's records and frames are kept in {out}", file=sys.stderr)
+        else:
+            print(f"heapgrasp: nothing was written to {out}", file=sys.stderr)
         return _robot_error(exc)
     phases = record.get("phases", [])
     ok = sum(1 for p in phases if p.get("outcome") == "success")
