@@ -196,16 +196,26 @@ def test_run_object_dir_smoke_records_the_dir_and_the_objects(
     assert sorted({o["name"] for r in records for o in r["world"]["objects"]}) == used
     assert json.loads((out / "config.json").read_text())["object_dir"] == str(folder)
 
-    # A broken object dir never touches the results already written.
+    # An object that cannot be used is skipped by name, the others still run (as in
+    # bench viewsphere); the results already written are not touched.
     written = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     (folder / "broken").mkdir()
     (folder / "broken" / "model.urdf").write_text(
         _urdf("broken", _mesh_el("gone.obj", "0 0 0", "0 0 0", "1 1 1"))
     )
-    assert main(["run", "--resume", "--out", str(out), "--quiet"]) == 2
+    assert main(["run", "--resume", "--out", str(out), "--quiet"]) == 0
     err = capsys.readouterr().err
-    assert "broken/model.urdf: mesh file not found" in err and "Traceback" not in err
+    assert "skipped user/broken: broken/model.urdf: mesh file not found" in err
+    assert "Traceback" not in err
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == written
+    # Nothing usable left: refused, naming each object and its problem.
+    only = tmp_path / "only-broken"
+    shutil.copytree(folder / "broken", only / "broken")
+    argv = ["run", "--object-dir", str(only), *QUICK, "--out", str(tmp_path / "r2")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "none of the 1 objects in" in err and "mesh file not found" in err
+    assert not (tmp_path / "r2" / "scenes.jsonl").exists()
 
 
 def test_help_says_scenes_are_the_users_objects_only(capsys: pytest.CaptureFixture[str]) -> None:

@@ -38,14 +38,16 @@ def object_library(
     """The object library of ``config.object_set`` (generated once into the cache), or the
     user's objects in ``config.object_dir``, all of them in ``config.split``
     (:func:`~heapgrasp.sim.objects.user_models`; ``on_skip`` is told of each subfolder
-    that holds no object, default: nothing is said).
+    that holds no object and of each object that cannot be used, by name and problem, which
+    is left out; default: nothing is said).
 
     Raises
     ------
     ConfigError
         Naming the directory, or each object file and its problem, when
-        ``config.object_dir`` is missing, holds no object, or holds objects that cannot be
-        used (no visual mesh, a mesh that does not load, larger than the workspace cube).
+        ``config.object_dir`` is missing, holds no object, or holds no object that can be
+        used (each has no visual mesh, a mesh that does not load, or is larger than the
+        workspace cube).
     """
     if config.object_dir is not None:
         try:
@@ -70,14 +72,26 @@ def _user_objects(config: RunConfig, on_skip: Callable[[str], None]) -> list[Obj
     cache = default_cache_dir()
     key = (str(folder.absolute()), str(cache), config.split, config.cube_size, tuple(stats))
     if key not in _USER_OBJECTS:
-        _USER_OBJECTS.clear()  # one run, one directory: keep the latest only
-        _USER_OBJECTS[key] = user_models(
+        bad: list[str] = []
+
+        def skip_bad(name: str, problem: str) -> None:
+            bad.append(problem)
+            on_skip(f"skipped {name}: {problem}")
+
+        models = user_models(
             folder,
             cache,
             test_fraction=1.0 if config.split == "test" else 0.0,
             max_extent=config.cube_size,
             on_skip=on_skip,
+            on_bad=skip_bad,
         )
+        if not models:  # refused only when nothing usable is left
+            raise ValueError(
+                f"none of the {len(bad)} objects in {folder} can be used:\n  " + "\n  ".join(bad)
+            )
+        _USER_OBJECTS.clear()  # one run, one directory: keep the latest only
+        _USER_OBJECTS[key] = models
     return _USER_OBJECTS[key]
 
 
