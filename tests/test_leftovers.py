@@ -126,3 +126,20 @@ def test_the_run_counts_removed_knocked_out_and_left() -> None:
     real = leftover_summary([_record(["success"], 3, None)])
     assert real["objects_removed"] == 1 and real["objects_left"] is None
     assert real["removal_ceiling"] is None
+
+
+def test_a_run_writes_its_summary_and_a_figure(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from heapgrasp.cli import main
+
+    out = tmp_path / "run"
+    argv = ["run", "--method", "no-vp", "--objects", "2", "--layout", "packed", "--quiet"]
+    assert main([*argv, "--set", "max_attempts=1", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    summary = (out / "summary.md").read_text()
+    table = printed.split("results:")[0].strip()
+    assert table and table in summary  # the printed table, kept
+    assert "objects:" in summary and "removal ceiling" in summary
+    assert (out / "summary.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert f"summary: {out / 'summary.md'}, {out / 'summary.png'}" in printed

@@ -3,7 +3,10 @@
 * :func:`figure_paths` — Fig. 5 of HEAPGrasp: hand-eye camera paths in the x–y plane,
   the scene boundary dashed, the initial position a square, the grasp a cross;
 * :func:`figure_grids` — Fig. 4: the measured grid of one phase per method, with its
-  grasp candidates (green) and the chosen grasp (red).
+  grasp candidates (green) and the chosen grasp (red);
+* :func:`figure_run` — one run at a glance: the first phase's camera path, and where the
+  objects of each scene group went (removed, knocked out, left graspable, left
+  ungraspable).
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import numpy as np
 
 from heapgrasp.loop.config import RunConfig
 
-__all__ = ["figure_grids", "figure_paths"]
+__all__ = ["figure_grids", "figure_paths", "figure_run"]
 
 
 def _pyplot() -> Any:
@@ -42,22 +45,73 @@ def figure_paths(
             (p for p in s["phases"] if p["scene"] == scene and p["phase"] == phase),
             None,
         )
-        if rec is not None and rec["camera_path"]:
-            xy = np.asarray(rec["camera_path"])[:, :2]
-            ax.plot(xy[:, 0], xy[:, 1], "-", color="tab:blue", lw=1.5)
-            ax.plot(xy[0, 0], xy[0, 1], "s", color="tab:blue", ms=8)
-            if rec.get("grasp_position") is not None:
-                g = rec["grasp_position"]
-                ax.plot(g[0], g[1], "x", color="tab:red", ms=10, mew=2)
-            length = rec.get("trajectory_length_m", 0.0)
-            ax.set_title(f"{method}: {length:.2f} m ({rec['outcome']})")
-        else:
-            ax.set_title(f"{method}: no phase")
-        ax.set_aspect("equal")
-        ax.set_xlim(-0.3, size + 0.3)
-        ax.set_ylim(-0.3, size + 0.3)
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
+        _path_panel(ax, rec, size, method)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _path_panel(ax: Any, rec: dict[str, Any] | None, size: float, title: str) -> None:
+    """One phase's camera path in the x–y plane (Fig. 5's panel), with a legend."""
+    ax.plot([0, size, size, 0, 0], [0, 0, size, size, 0], "k--", lw=1, label="scene cube")
+    if rec is not None and rec["camera_path"]:
+        xy = np.asarray(rec["camera_path"])[:, :2]
+        ax.plot(xy[:, 0], xy[:, 1], "-", color="tab:blue", lw=1.5, label="camera path")
+        ax.plot(xy[0, 0], xy[0, 1], "s", color="tab:blue", ms=8, label="start p⁰")
+        if rec.get("grasp_position") is not None:
+            g = rec["grasp_position"]
+            ax.plot(g[0], g[1], "x", color="tab:red", ms=10, mew=2, label="grasp")
+        length = rec.get("trajectory_length_m", 0.0)
+        ax.set_title(f"{title}: {length:.2f} m ({rec['outcome']})")
+    else:
+        ax.set_title(f"{title}: no phase")
+    ax.set_aspect("equal")
+    ax.set_xlim(-0.3, size + 0.3)
+    ax.set_ylim(-0.3, size + 0.3)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(fontsize=7, loc="upper right")
+
+
+def figure_run(summary: dict[str, Any], path: Path) -> None:
+    """A finished run at a glance (``run``'s ``summary.png``): the camera path of the first
+    scene's first phase, and per scene group where the objects went."""
+    plt = _pyplot()
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.2))
+    size = float(summary["config"]["cube_size"])
+    first = min(
+        (p for p in summary.get("phases", [])),
+        key=lambda p: (p["scene"], p["phase"]),
+        default=None,
+    )
+    _path_panel(left, first, size, f"scene {first['scene'] if first else '–'}, phase 0")
+    groups = {"all": summary, **summary.get("per_scene_group", {})}
+    names = list(groups)
+    parts = {
+        "removed": ("tab:green", lambda o: o["objects_removed"]),
+        "knocked out": ("tab:orange", lambda o: o["objects_knocked_out"]),
+        "left, graspable": ("tab:red", lambda o: o["leftovers_graspable"] or 0),
+        "left, ungraspable": (
+            "tab:gray",
+            lambda o: (o["objects_left"] or 0) - (o["leftovers_graspable"] or 0),
+        ),
+    }
+    bottom = np.zeros(len(names))
+    for label, (colour, count) in parts.items():
+        values = []
+        for g in groups.values():
+            o = g.get("objects") or {}
+            values.append(float(count(o)) if o else 0.0)
+        right.bar(names, values, bottom=bottom, color=colour, label=label)
+        bottom += np.asarray(values)
+    right.set_ylabel("objects")
+    right.set_xlabel("scene group")
+    rate = summary.get("grasp_success_rate")
+    right.set_title(
+        "where the objects went" + ("" if rate is None else f" (grasp success {100 * rate:.1f} %)")
+    )
+    right.legend(fontsize=8)
+    fig.suptitle(summary.get("label", summary.get("method", "")))
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
