@@ -1,13 +1,15 @@
-"""A command that needs an optional dependency which is not installed ends with one line
-naming the extra that brings it, and exit status 2 — never a traceback."""
+"""The command line for a newcomer: a command that needs an optional dependency which is
+not installed ends with one line naming the extra that brings it, and exit status 2 —
+never a traceback; help reads as plain text."""
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
 import pytest
-from heapgrasp.cli import OPTIONAL_MODULES, install_hint, main
+from heapgrasp.cli import OPTIONAL_MODULES, build_parser, install_hint, main, plain
 
 
 @pytest.mark.parametrize(
@@ -43,3 +45,29 @@ def test_install_hint_names_the_extra_or_keeps_the_message() -> None:
     other = ModuleNotFoundError("No module named 'networkx'", name="networkx")
     assert "reinstall heapgrasp" in install_hint(other)
     assert OPTIONAL_MODULES["cv2"] == "robot" and OPTIONAL_MODULES["torch"] == "train"
+
+
+def _helps(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()) -> dict[str, str]:
+    out = {" ".join(path): parser.format_help()}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                out.update(_helps(sub, (*path, name)))
+    return out
+
+
+def test_every_help_is_plain_text() -> None:
+    assert plain("see :mod:`heapgrasp.run` and :func:`~heapgrasp.sim.leftovers.describe`") == (
+        "see heapgrasp.run and describe"
+    )
+    assert plain("``--scenes`` scenes::\n") == "--scenes scenes:\n"
+    helps = _helps(build_parser())
+    assert len(helps) > 30
+    for command, text in helps.items():
+        assert "``" not in text and ":mod:`" not in text and ":func:`" not in text, command
+        assert "(default: None)" not in text, command
+    # each dataset's help describes that dataset (and the shared resume rules) alone
+    views = helps["data views"]
+    assert "Algorithm 1" in views and "Poisson(4)" not in views and "2000" not in views
+    assert "finished shards are kept" in views
+    assert "(default: 5)" in helps["sim capture"]  # shown defaults stay shown

@@ -21,6 +21,7 @@ parsed :class:`argparse.Namespace` and returning the exit status::
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from collections.abc import Sequence
 
@@ -68,7 +69,53 @@ def build_parser() -> argparse.ArgumentParser:
     seg_cli.add_parser(commands)
     robot_cli.add_parser(commands)
     robot_cli.add_replay_parser(commands)
+    _plain_help(parser)
     return parser
+
+
+_ROLE = re.compile(r":[a-z]+:`~?([^`]+)`")
+_LITERAL = re.compile(r"``([^`]+)``")
+
+
+def plain(text: str) -> str:
+    """Help text without the reStructuredText of the docstrings it comes from:
+    ``:mod:`heapgrasp.run``` → ``heapgrasp.run`` (``~a.b`` → ``b``), double backticks →
+    none."""
+
+    def role(m: re.Match[str]) -> str:
+        target = m.group(1)
+        return target.rsplit(".", 1)[-1] if m.group(0).count("~") else target
+
+    text = _LITERAL.sub(r"\1", _ROLE.sub(role, text))
+    return text.replace("::\n", ":\n")  # a literal block's marker
+
+
+class _PlainMixin(argparse.HelpFormatter):
+    """Help as plain text (:func:`plain`); no "(default: None)" after a required option
+    or one without a default."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        return super()._fill_text(plain(text), width, indent)
+
+    def _split_lines(self, text: str, width: int) -> list[str]:
+        return super()._split_lines(plain(text), width)
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.required or action.default is None:
+            return action.help
+        return super()._get_help_string(action)
+
+
+def _plain_help(parser: argparse.ArgumentParser) -> None:
+    """Every parser under ``parser`` prints its help as plain text (:class:`_PlainMixin`
+    over its own formatter: raw descriptions stay raw, shown defaults stay shown)."""
+    own = parser.formatter_class
+    if isinstance(own, type) and not issubclass(own, _PlainMixin):
+        parser.formatter_class = type(f"Plain{own.__name__}", (_PlainMixin, own), {})
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                _plain_help(sub)
 
 
 #: The optional modules a command may need, and the extra that installs each

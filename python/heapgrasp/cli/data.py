@@ -123,6 +123,22 @@ def _viewsphere_paths(args: argparse.Namespace) -> int:
     )
 
 
+def _describe(name: str) -> str:
+    """The module doc's paragraphs on ``heapgrasp data NAME``, and the closing one on
+    shards and resuming, which every dataset shares."""
+    paragraphs = (__doc__ or "").strip().split("\n\n")
+    own: list[str] = []
+    for k, para in enumerate(paragraphs[1:-1], start=1):
+        if para.startswith("``heapgrasp data "):
+            if own:
+                break
+            if para.startswith(f"``heapgrasp data {name}``"):
+                own = paragraphs[k : k + 3]
+    if not own:
+        return __doc__ or ""
+    return "\n\n".join([*own, paragraphs[-1]])
+
+
 def _dataset_parser(
     sub: argparse._SubParsersAction[argparse.ArgumentParser],
     name: str,
@@ -132,9 +148,13 @@ def _dataset_parser(
     shard_size: int,
     max_objects: bool = True,
 ) -> argparse.ArgumentParser:
-    """A ``data`` subcommand with the options every dataset has."""
+    """A ``data`` subcommand with the options every dataset has; its help describes
+    that dataset alone (:func:`_describe`)."""
     p = sub.add_parser(
-        name, help=help, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        name,
+        help=help,
+        description=_describe(name),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("out", metavar="OUT", help="dataset directory (created; resumed if present)")
     p.add_argument(

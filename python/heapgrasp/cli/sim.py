@@ -137,6 +137,14 @@ def capture_command(args: argparse.Namespace) -> int:
     np.savez_compressed(out / "frames.npz", **arrays)  # type: ignore[arg-type]
     scene = json.loads((out / "scene.json").read_text())
     cats = [o["category"] for o in scene["objects"]]
+    if len(scene["objects"]) < args.objects:
+        print(
+            f"heapgrasp sim capture: placed {len(scene['objects'])} of the {args.objects} "
+            f"objects asked for; the others came to rest outside the {config.cube_size} m "
+            "workspace cube and were removed (a pile drops some: --layout packed places them "
+            "upright)",
+            file=sys.stderr,
+        )
     print(
         f"{len(frames)} frames of {camera.width}x{camera.height}, "
         f"{len(scene['objects'])} objects ({', '.join(sorted(set(cats)))}) -> {out}"
