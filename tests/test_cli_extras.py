@@ -5,6 +5,8 @@ never a traceback; help reads as plain text."""
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -71,3 +73,29 @@ def test_every_help_is_plain_text() -> None:
     assert "Algorithm 1" in views and "Poisson(4)" not in views and "2000" not in views
     assert "finished shards are kept" in views
     assert "(default: 5)" in helps["sim capture"]  # shown defaults stay shown
+
+
+def test_output_into_a_closed_pipe_ends_quietly() -> None:
+    # `heapgrasp run --print-config | head -0`: the reader is gone before the first line
+    exe = Path(sys.executable).with_name("heapgrasp")
+    proc = subprocess.Popen(
+        [str(exe), "run", "--print-config"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=os.environ,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()
+    with proc.stderr:
+        err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 0
+    assert "BrokenPipe" not in err and "Traceback" not in err
+
+
+def test_no_command_opens_with_pybullet_s_build_line(tmp_path: Path) -> None:
+    exe = Path(sys.executable).with_name("heapgrasp")
+    argv = [str(exe), "run", "--method", "no-vp", "--objects", "1", "--layout", "packed"]
+    argv += ["--set", "max_attempts=1", "--quiet", "--out", str(tmp_path / "r")]
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=600, check=False)
+    assert done.returncode == 0, done.stderr
+    assert "pybullet build time" not in done.stderr + done.stdout

@@ -170,6 +170,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         naming the extra that installs it, :func:`install_hint`); ``--help`` and
         ``--version`` return 0.
     """
+    try:
+        return _main(argv)
+    except BrokenPipeError:  # `heapgrasp ... | head`: the reader has what it wanted
+        _silence_stdout()
+        return 0
+
+
+def _silence_stdout() -> None:
+    """Points stdout at the null device, so that flushing it at exit after a closed pipe
+    raises nothing more."""
+    import os
+
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
+def _main(argv: Sequence[str] | None) -> int:
     from heapgrasp.loop.config import ConfigError
 
     args_list = list(sys.argv[1:] if argv is None else argv)
@@ -181,6 +201,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.argv = args_list
     try:
         status: int = args.func(args)
+    except BrokenPipeError:  # not a command's error: main() ends quietly
+        raise
     except KeyboardInterrupt:
         print("heapgrasp: interrupted", file=sys.stderr)
         return 130

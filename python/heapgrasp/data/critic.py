@@ -131,11 +131,10 @@ class CriticDataConfig:
 
 def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
     """Runs scene ``index`` and returns its arrays (see the module docstring)."""
-    import pybullet as pb
-
     from heapgrasp.perception.silhouette import SilhouettePerception
     from heapgrasp.planning.volumes import select_candidates
     from heapgrasp.sim.build import make_body, object_library, scene_world, sim_pipeline
+    from heapgrasp.sim.bullet import pb
     from heapgrasp.sim.gripper import MAX_OPENING, Grasp, GraspOutcome, execute_grasp
     from heapgrasp.sim.objects import generate_procedural
 

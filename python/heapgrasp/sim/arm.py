@@ -64,13 +64,13 @@ from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
-import pybullet as pb
 import pybullet_data
 
 from heapgrasp import HeapgraspError
 from heapgrasp.geometry.motion import MotionLimits, TimedPath
 from heapgrasp.robot.grasping import HandPart, translate
 from heapgrasp.robot.interfaces import UnreachableError as RobotUnreachableError
+from heapgrasp.sim.bullet import pb
 from heapgrasp.sim.fingers import FINGER_FRICTION, MAX_OPENING, Fingers
 from heapgrasp.sim.gripper import TCP_OFFSET
 from heapgrasp.sim.world import SimWorld, _pose, _split_pose

@@ -12,9 +12,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-import pybullet as pb
-
 from heapgrasp.geometry.gripper import PANDA_HAND
+from heapgrasp.sim.bullet import pb
 
 if TYPE_CHECKING:
     from heapgrasp.sim.world import SimWorld

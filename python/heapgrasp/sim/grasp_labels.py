@@ -35,11 +35,11 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import pybullet as pb
 
 from heapgrasp import GraspLabeller
 from heapgrasp.geometry.gripper import GRASP_DEPTH_RANGE, PANDA_HAND, GripperGeometry
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE
+from heapgrasp.sim.bullet import pb
 from heapgrasp.sim.fingers import FINGER_FRICTION, MAX_OPENING, MIN_HELD_WIDTH
 from heapgrasp.sim.gripper import FINGER_JOINT_Z, PANDA_MESHES, TCP_OFFSET
 from heapgrasp.sim.objects import load_mesh

@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-import pybullet as pb
 import pybullet_data
 
 from heapgrasp.robot.grasping import (
@@ -34,6 +33,7 @@ from heapgrasp.robot.grasping import (
     translate,
 )
 from heapgrasp.robot.grasping import execute_grasp as robot_execute_grasp
+from heapgrasp.sim.bullet import pb
 from heapgrasp.sim.fingers import FINGER_FRICTION, MAX_OPENING, Fingers
 from heapgrasp.sim.objects import default_cache_dir
 from heapgrasp.sim.robot import Robot

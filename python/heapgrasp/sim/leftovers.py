@@ -22,8 +22,8 @@ from collections import Counter
 from typing import Any
 
 import numpy as np
-import pybullet as pb
 
+from heapgrasp.sim.bullet import pb
 from heapgrasp.sim.grasp_labels import REASONS, labeller, sample_grasps
 from heapgrasp.sim.world import SimWorld
 

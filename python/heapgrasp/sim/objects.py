@@ -884,7 +884,7 @@ def _quiet_stdout() -> Iterator[None]:
 
 def _vhacd(vertices: FloatArray, faces: IntArray, work: Path) -> list[FloatArray]:
     """The vertices of each convex piece of ``pybullet.vhacd``'s decomposition."""
-    import pybullet as pb
+    from heapgrasp.sim.bullet import pb
 
     src, out, log = work / "in.obj", work / "out.obj", work / "vhacd.log"
     src.write_text(_obj_text(vertices, faces, "heapgrasp vhacd input"))

@@ -27,11 +27,11 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import numpy.typing as npt
-import pybullet as pb
 
 from heapgrasp import MeshScene
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.perception.frames import Capture, Frame
+from heapgrasp.sim.bullet import pb
 from heapgrasp.sim.objects import ObjectLibrary, ObjectModel, load_mesh
 from heapgrasp.sim.optics import Category, DepthModel
 
