@@ -20,6 +20,7 @@ from heapgrasp.cli import OPTIONAL_MODULES, build_parser, install_hint, main, pl
         ("torch", ["bench", "seg", "--size", "64x64", "--repeats", "1"], "train"),
         ("cv2", ["robot", "board", "{tmp}/board.png"], "robot"),
         ("cv2", ["robot", "calibrate", "--synthetic", "--out", "{tmp}/cal"], "robot"),
+        ("torch", ["train", "grasps", "{tmp}", "--out", "{tmp}/net"], "train"),
     ],
 )
 def test_a_missing_extra_is_one_line_and_exit_2(
@@ -36,6 +37,7 @@ def test_a_missing_extra_is_one_line_and_exit_2(
     assert code == 2
     assert f"pip install 'heapgrasp[{extra}]'" in err
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert err.count("pip install") == 1  # the hint once
     assert not list(tmp_path.iterdir())  # nothing written
 
 

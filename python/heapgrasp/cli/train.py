@@ -56,9 +56,12 @@ def _require_training(command: str) -> None:
         importlib.import_module("heapgrasp.nets")
         importlib.import_module("safetensors")
     except ImportError as exc:
+        missing = (exc.name or "PyTorch").split(".")[0]
+        if missing.startswith("heapgrasp"):
+            missing = "torch"
         raise _config_error(
-            f"heapgrasp train {command} needs PyTorch and safetensors ({exc}): "
-            "pip install 'heapgrasp[train]'"
+            f"heapgrasp train {command} needs PyTorch and safetensors ({missing} is not "
+            "installed): pip install 'heapgrasp[train]'"
         ) from None
 
 
