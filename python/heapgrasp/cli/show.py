@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from heapgrasp.loop.config import ConfigError
@@ -72,7 +73,16 @@ def show_command(args: argparse.Namespace) -> int:
         return _fail(str(exc))
     category = None if recorded is None else recorded.get("category")
     out: Path = args.out or run_dir / "viz" / f"scene-{args.scene:03d}.rrd"
+    print(
+        f"heapgrasp show: running scene {args.scene} (seed {config.seed + args.scene}) of "
+        f"{run_dir} again with a recorder, rendering RGB frames for it: about half a minute "
+        "for a 5-object scene …",
+        file=sys.stderr,
+        flush=True,
+    )
+    t0 = time.perf_counter()
     replay = run_scene(config, args.scene, category=category, record=out)
+    print(f"heapgrasp show: done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
     outcomes = [p["outcome"] for p in replay["phases"]]
     print(f"scene {args.scene}: {len(outcomes)} phase(s), outcomes {outcomes}")
     if recorded is not None and "phases" in recorded:
@@ -87,5 +97,8 @@ def show_command(args: argparse.Namespace) -> int:
     if args.web:
         print("serving it to a browser (Ctrl-C to stop)")
         return subprocess.call([sys.executable, "-m", "rerun", "--web-viewer", str(out)])
-    print(f"open it with: rerun {out}")
+    print(
+        f"open it with: rerun {out}  (the `rerun` viewer comes with rerun-sdk, which "
+        "pip install 'heapgrasp[viz]' installs; or heapgrasp show --web for a browser)"
+    )
     return 0
