@@ -901,6 +901,8 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
     tasks, done = _tasks(objects, args, config, out)
     records = {name: dict(poses) for name, poses in done.items()}
     total = sum(args.poses for _ in objects)
+    if tasks and not args.quiet:
+        print(_duration_note(len(tasks), len(args.policies), args.workers), file=sys.stderr)
     bar = tqdm(
         total=total,
         initial=total - len(tasks),
@@ -1045,6 +1047,23 @@ def add_parser(
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=command)
     return p
+
+
+#: CPU seconds one pose took for one policy in the full protocol's run (12 objects × 100
+#: poses × 11 policies in 43 min on 2 workers: docs/benchmarks.md).
+SECONDS_PER_POSE_POLICY = 43 * 60 * 2 / (12 * 100 * 11)
+
+
+def _duration_note(poses: int, policies: int, workers: int) -> str:
+    """What a run is about to do and roughly how long it takes (from the full protocol's
+    measured rate, :data:`SECONDS_PER_POSE_POLICY`)."""
+    minutes = poses * policies * SECONDS_PER_POSE_POLICY / max(1, min(workers, poses)) / 60
+    about = f"about {minutes:.0f} min" if minutes >= 1 else "under a minute"
+    return (
+        f"heapgrasp bench viewsphere: {poses} object pose(s) × {policies} policies to run, "
+        f"{about} on {workers} worker(s) (the full protocol, 12 objects × 100 poses × "
+        "11 policies, took 43 min on 2 cores; --poses and --policies run less)"
+    )
 
 
 def command(args: argparse.Namespace) -> int:
