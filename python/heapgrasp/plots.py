@@ -137,19 +137,26 @@ def figure_grids(base: RunConfig, methods: Sequence[str], path: Path, *, scene: 
             cands = pipeline.grasp_candidates()
         occ = np.argwhere(grid > 0)
         centres = pipeline.frame.centers(occ)
-        ax.scatter(*centres.T, s=2, c=centres[:, 2], cmap="viridis", alpha=0.4)
+        voxels = ax.scatter(
+            *centres.T, s=2, c=centres[:, 2], cmap="viridis", alpha=0.4, label="Ŝ≥λ voxel"
+        )
+        fig.colorbar(voxels, ax=ax, shrink=0.6, pad=0.1, label="voxel height z (m)")
         if cands:
             cp = np.stack([c.position for c in cands])
-            ax.scatter(*cp.T, s=25, c="tab:green", depthshade=False)
+            ax.scatter(*cp.T, s=25, c="tab:green", depthshade=False, label="grasp candidate")
         if planned.grasp is not None:
             g = planned.grasp.pose
-            ax.scatter(*g[:3, 3], s=60, c="tab:red", depthshade=False)
+            ax.scatter(*g[:3, 3], s=60, c="tab:red", depthshade=False, label="executed grasp")
             tip = g[:3, 3] - 0.05 * g[:3, 2]
             ax.plot(*np.stack([tip, g[:3, 3]]).T, c="tab:red", lw=2)
         size = config.cube_size
         ax.set_xlim(0, size)
         ax.set_ylim(0, size)
         ax.set_zlim(0, size)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_zlabel("z (m)")
+        ax.legend(fontsize=7, loc="upper left")
         ax.set_title(f"{method} ({group}): {len(occ)} voxels, {len(cands)} grasps")
     fig.tight_layout()
     fig.savefig(path, dpi=110)

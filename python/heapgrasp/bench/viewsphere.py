@@ -638,28 +638,38 @@ def figures(results: Mapping[str, Any], out: Path) -> None:
         for ax, step in zip(axes, (1, 3), strict=True):
             for k, (name, rows) in enumerate(by_class.items()):
                 values = [rows[c][f"step_{step}"] for c in classes]
-                ax.bar(
-                    [i + k * width for i in range(len(classes))],
-                    [np.nan if v is None else v for v in values],
-                    width,
-                    label=name,
-                )
-            ax.set_xticks([i + 0.4 - width / 2 for i in range(len(classes))], classes)
+                # groups centred on their class's tick, all inside the axes
+                xs = [i - 0.4 + (k + 0.5) * width for i in range(len(classes))]
+                ax.bar(xs, [np.nan if v is None else v for v in values], width, label=name)
+                for x, v in zip(xs, values, strict=True):
+                    # a measured 0 and a class without objects must not look alike
+                    if v is None:
+                        ax.text(x, 0.02, "n/a", ha="center", va="bottom", fontsize=7, rotation=90)
+                    elif v == 0:
+                        ax.text(x, 0.02, "0", ha="center", va="bottom", fontsize=6)
+            ax.set_xticks(range(len(classes)), classes)
+            ax.set_xlim(-0.5, len(classes) - 0.5)
+            ax.set_xlabel("object class (seed 001 §5.1)")
             ax.set_title(f"step {step}", fontsize=9)
             ax.axhline(1.0, color="k", lw=0.8)
             ax.grid(axis="y", alpha=0.3)
         axes[0].set_ylabel("policy / BFS success")
-        axes[1].legend(fontsize=7)
+        axes[1].legend(fontsize=7, bbox_to_anchor=(1.02, 1.0), loc="upper left")
         fig.tight_layout()
         fig.savefig(out / "fig11_bfs_ratio.png", dpi=110)
         plt.close(fig)
     ratios = [(o, c["ratio"]) for o, c in results["classes"].items() if c["ratio"] is not None]
     if ratios:
-        fig, ax = plt.subplots(figsize=(max(4.0, 0.5 * len(ratios) + 1), 3.2))
-        ax.bar([o for o, _ in ratios], [r for _, r in ratios], color="tab:gray")
-        for t in CLASS_THRESHOLDS:
-            ax.axhline(t, color="tab:red", ls="--", lw=1)
-        ax.set_ylabel("random / BFS success at step 2")
+        fig, ax = plt.subplots(figsize=(max(5.0, 0.5 * len(ratios) + 2), 4.0))
+        bars = ax.bar([o for o, _ in ratios], [r for _, r in ratios], color="tab:gray")
+        ax.bar_label(bars, fmt="%.2f", fontsize=6)  # a measured 0 is written, not blank
+        hard, medium = CLASS_THRESHOLDS
+        ax.axhline(hard, color="tab:red", ls="--", lw=1, label=f"hard ≤ {hard:g}")
+        ax.axhline(medium, color="tab:orange", ls="--", lw=1, label=f"medium ≤ {medium:g} < easy")
+        ax.set_ylabel("random / BFS success\nat step 2")
+        ax.set_xlabel("object")
+        ax.set_title("object difficulty (seed 001 §5.1)", fontsize=9)
+        ax.legend(fontsize=7)
         ax.tick_params(axis="x", rotation=60, labelsize=7)
         fig.tight_layout()
         fig.savefig(out / "difficulty.png", dpi=110)
