@@ -10,6 +10,10 @@ import numpy as np
 import pybullet as pb
 import pytest
 import trimesh
+from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
+from heapgrasp.loop.config import RunConfig
+from heapgrasp.loop.phase import build_pipeline
+from heapgrasp.loop.protocol import StopReason, run_clutter_removal
 from heapgrasp.loop.summary import leftover_summary
 from heapgrasp.sim.leftovers import describe_leftovers
 from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
@@ -72,7 +76,7 @@ def test_leftovers_are_described_and_tried_on_their_meshes(tmp_path: Path) -> No
         assert box["border_m"] == pytest.approx(0.06, abs=0.005)
         assert flat["graspable"] is False and flat["grasps_held"] == 0
         assert sum(flat["failures"].values()) == flat["grasps_tried"] > 0
-        # the slab's near edge is 6 cm from the box's x = 0.10 face
+        # the box's x = 0.10 face and the slab's near edge (x = 0.14) are 4 cm apart
         assert box["neighbour_m"] == pytest.approx(0.04, abs=0.01)
         # the same seed, the same verdicts
         again = describe_leftovers(world, np.random.default_rng(0))
@@ -143,3 +147,36 @@ def test_a_run_writes_its_summary_and_a_figure(
     assert "objects:" in summary and "removal ceiling" in summary
     assert (out / "summary.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert f"summary: {out / 'summary.md'}, {out / 'summary.png'}" in printed
+
+
+class _KnockingTruth(FakeTruth):
+    """The fake robot's truth, whose every settle takes out all the objects still there
+    (as if the attempt had swept them off the table)."""
+
+    def settle(self) -> dict[int, str | None]:
+        gone = dict.fromkeys(self.scene.ids, "opaque")
+        for oid in gone:
+            self.scene.meshes.remove(oid)
+            del self.scene.ids[oid]
+        return gone
+
+
+def test_objects_knocked_out_are_recorded_and_can_clear_the_scene() -> None:
+    scene = FakeScene(
+        [((0.11, 0.15, 0.035), (0.05, 0.04, 0.07)), ((0.20, 0.14, 0.03), (0.04, 0.04, 0.06))]
+    )
+    robot = FakeRobot(scene)
+    truth = _KnockingTruth(scene, robot)
+    pipeline = build_pipeline(
+        RunConfig(method="no-vp"), robot, segmenter=RedSegmenter(), truth=truth
+    )
+    phases, reason = run_clutter_removal(robot, pipeline.plan, truth=truth)
+    assert reason == StopReason.CLEARED and len(phases) == 1
+    (phase,) = phases
+    knocked = phase.extra["knocked_out"]
+    removed = int(phase.outcome == "success")
+    assert len(knocked) == 2 - removed and set(knocked.values()) == {"opaque"}
+    record = {"scene": 0, "objects_total": 2, "phases": [phase.to_dict()], "leftovers": []}
+    s = leftover_summary([record])
+    assert s["objects_knocked_out"] == 2 - removed and s["objects_left"] == 0
+    assert s["objects_removed"] == removed

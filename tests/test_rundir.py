@@ -212,3 +212,19 @@ def test_a_configuration_error_exits_2_in_every_command(
     assert "unknown parameter 'nonsense'" in capsys.readouterr().err
     assert main(["bench", "sim", "--set", "nonsense=1", "--out", str(tmp_path / "b")]) == 2
     capsys.readouterr()
+
+
+def test_a_run_saved_before_look_again_is_read_as_it_ran(tmp_path: Path) -> None:
+    # look_again's default (2) is not what runs made before it did: they stopped at once.
+    rundir = RunDir(tmp_path / "old")
+    rundir.path.mkdir()
+    saved = RunConfig().to_dict()
+    del saved["look_again"]
+    rundir.config_file.write_text(json.dumps(saved))
+    config = rundir.read_config()
+    assert config is not None and config.look_again == 0
+    assert config == RunConfig(look_again=0)
+    # a saved value is kept as it is
+    rundir.write_config(RunConfig(look_again=1))
+    again = rundir.read_config()
+    assert again is not None and again.look_again == 1

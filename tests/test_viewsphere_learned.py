@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from heapgrasp.data import shards
 from heapgrasp.data import viewsphere_paths as vp
 from heapgrasp.data.shards import generate
 from heapgrasp.data.viewsphere_train import DqnConfig, fold_linear, train_dqn, train_linear
@@ -186,10 +187,17 @@ def test_the_paths_dataset_resumes_and_extends_its_last_shard(tmp_path: Path):
     again = generate(config, tmp_path, progress=False)
     assert again["complete"] and shard.read_bytes() == before
     bigger = vp.ViewspherePathsConfig(**{**config.__dict__, "scenes": 2})
+    # before the shard is written again, a manifest does not call it complete
+    partial = shards._write_manifest(tmp_path, bigger.spec, bigger, bigger.object_names(), 0.0)
+    assert not partial["complete"]
     more = generate(bigger, tmp_path, progress=False)
     assert first["shards"]["shard-00000.npz"]["scenes"] == 1
     assert more["shards"]["shard-00000.npz"]["scenes"] == 2
     assert more["samples"] + more["dropped"] == 2
+    # fewer scenes than a shard holds: the shard is kept whole, nothing is lost
+    grown = shard.read_bytes()
+    fewer = generate(config, tmp_path, progress=False)
+    assert fewer["complete"] and shard.read_bytes() == grown
     with pytest.raises(ValueError, match="tries: 1 there, 2 asked"):
         generate(
             vp.ViewspherePathsConfig(**{**config.__dict__, "tries": 2}), tmp_path, progress=False

@@ -171,10 +171,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         ``--version`` return 0.
     """
     try:
-        return _main(argv)
-    except BrokenPipeError:  # `heapgrasp ... | head`: the reader has what it wanted
-        _silence_stdout()
+        status = _main(argv)
+        sys.stdout.flush()  # a closed pipe shows here, not at the interpreter's exit
+        return status
+    except BrokenPipeError as exc:
+        if not _stdout_broken():  # another pipe (a device, a worker): a real error
+            print(f"heapgrasp: error: {exc}", file=sys.stderr)
+            return 1
+        _silence_stdout()  # `heapgrasp ... | head`: the reader has what it wanted
         return 0
+
+
+def _stdout_broken() -> bool:
+    """Whether stdout is a pipe whose reader has gone (poll reports an error on its write
+    end); where that cannot be asked, a broken pipe is taken to be stdout's."""
+    import select
+
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(event & select.POLLERR for _, event in poller.poll(0))
+    except (AttributeError, OSError, ValueError):
+        return True
 
 
 def _silence_stdout() -> None:

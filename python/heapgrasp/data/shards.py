@@ -211,14 +211,15 @@ def read_manifest(out: Path, spec: DatasetSpec) -> dict[str, Any]:
 
 
 def _holds(out: Path, config: ShardedConfig, shard: int) -> bool:
-    """Whether ``out`` holds ``shard`` whole: its file, with as many scenes as the shard
-    has now (the last shard of a smaller dataset that is being extended has fewer, and is
-    written again)."""
+    """Whether ``out`` holds ``shard`` whole: its file, with at least as many scenes as the
+    shard has now (the last shard of a smaller dataset that is being extended has fewer,
+    and is written again)."""
     path = shard_path(out, shard)
     if not path.exists():
         return False
     with np.load(path) as data:
-        return int(data["scenes"]) == len(config.shard_scenes(shard))
+        # a shard made for more scenes than now asked for is kept whole (nothing lost)
+        return int(data["scenes"]) >= len(config.shard_scenes(shard))
 
 
 def _shard_entry(path: Path, spec: DatasetSpec) -> dict[str, Any]:
@@ -255,7 +256,12 @@ def _write_manifest(
         "config": {**config.identity(), "scenes": config.scenes, **spec.settings()},
         "shards": shards,
         **totals,
-        "complete": len(shards) == config.shards,
+        # every shard there, each holding all the scenes it has now
+        "complete": all(
+            shard_path(out, k).name in shards
+            and shards[shard_path(out, k).name]["scenes"] >= len(config.shard_scenes(k))
+            for k in range(config.shards)
+        ),
         "package_version": heapgrasp.__version__,
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
         "command": " ".join(sys.argv),

@@ -586,9 +586,12 @@ class Pipeline:
                     }
                 )
             phase.final_candidates, phase.stopped = None, None
+            # the look that found nothing: its final grid's planning (one call)
+            before = {"final_planning_s": final_latency, "final_replanned": final is None}
             cands, best, chosen, final, final_latency = self._look(phase, turn)
             looks.append(
                 {
+                    "previous_look": before,
                     "turn_deg": float(np.degrees(turn)),
                     "waypoints": len(phase.waypoints) - n_waypoints,
                     "final_candidates": len(cands),
@@ -617,7 +620,7 @@ class Pipeline:
         }
         if self.config.scene_memory:
             extra["memory"] = memory
-        if self.reference is not None:
+        if self.reference is not None and isinstance(self.perception, SilhouettePerception):
             lam = self.config.lam
             extra["reference_grid"] = grid_agreement(
                 self.perception.grid.high_confidence(lam) > 0,

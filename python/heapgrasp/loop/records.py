@@ -34,6 +34,7 @@ __all__ = [
     "LOCK_FILE",
     "RESULTS_FILE",
     "SCENES_FILE",
+    "SETTINGS_BEFORE_THEY_EXISTED",
     "RecordError",
     "RunDir",
     "RunLockedError",
@@ -44,6 +45,11 @@ SCENES_FILE = "scenes.jsonl"
 RESULTS_FILE = "results.json"
 CONFIG_FILE = "config.json"
 LOCK_FILE = ".lock"
+#: Settings added after runs were saved whose default is not the behaviour those runs
+#: had: a ``config.json`` without the key is read with this value (the run's own), so
+#: that ``--resume``, ``show`` and ``replay`` run it as it ran. Settings whose default
+#: is the old behaviour need no entry.
+SETTINGS_BEFORE_THEY_EXISTED: dict[str, Any] = {"look_again": 0}
 
 
 class RecordError(ValueError):
@@ -86,7 +92,9 @@ class RunDir:
             raise ConfigError(f"{path}: cannot be read as a run's configuration: {exc}") from None
         if not isinstance(data, dict):
             raise ConfigError(f"{path}: a run's configuration is a JSON object, not {data!r:.40}")
-        return RunConfig.from_mapping(data, source=str(path))
+        # a run saved before a setting existed ran with that setting's "off" value
+        missing = {k: v for k, v in SETTINGS_BEFORE_THEY_EXISTED.items() if k not in data}
+        return RunConfig.from_mapping({**data, **missing}, source=str(path))
 
     def write_config(self, config: RunConfig) -> None:
         """Writes ``config.json`` atomically."""

@@ -76,6 +76,9 @@ def leftover_summary(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "graspable_left_rate": None,
         "removal_ceiling": None,
     }
+    failed = [r["scene"] for r in records if "leftovers_error" in r]
+    if failed:  # the counts of the left would hide those scenes' objects
+        out["leftover_analysis_failed"] = failed
     if not records or not all("leftovers" in r for r in records):
         return out
     left = [o for r in records for o in r["leftovers"]]
@@ -123,16 +126,25 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
     # One grasp-planning call: the grid to eq. 15's candidates (and the critic's scores),
     # at a waypoint where grasps were planned or at the end of a phase's viewing where the
     # final grid was planned again.
-    grasp_calls = [
-        float(w["grasp_planning_s"])
-        for p in phase_dicts
-        for w in p.get("waypoints", [])
-        if w.get("grasp_candidates") is not None and w.get("grasp_planning_s") is not None
-    ] + [
-        float(p["final_planning_s"])
-        for p in phase_dicts
-        if p.get("final_planning_s") is not None and p.get("final_replanned", True)
-    ]
+    grasp_calls = (
+        [
+            float(w["grasp_planning_s"])
+            for p in phase_dicts
+            for w in p.get("waypoints", [])
+            if w.get("grasp_candidates") is not None and w.get("grasp_planning_s") is not None
+        ]
+        + [
+            float(p["final_planning_s"])
+            for p in phase_dicts
+            if p.get("final_planning_s") is not None and p.get("final_replanned", True)
+        ]
+        + [  # the final grids of the looks that found nothing and looked again
+            float(look["previous_look"]["final_planning_s"])
+            for p in phase_dicts
+            for look in p.get("looked_again") or []
+            if look.get("previous_look", {}).get("final_replanned")
+        ]
+    )
     per_group: dict[str, Any] = {}
     for group in sorted({r["category"] for r in done}):
         sel = [r for r in done if r["category"] == group]

@@ -8,7 +8,7 @@ from __future__ import annotations
 import os
 import sys
 from types import ModuleType
-from typing import Any
+from typing import Any, cast
 
 __all__ = ["pb"]
 
@@ -19,13 +19,13 @@ def _quiet_import() -> ModuleType:
     if "pybullet" in sys.modules:
         import pybullet
 
-        return pybullet
+        return cast(ModuleType, pybullet)
     try:
         fd = sys.stderr.fileno()
     except (AttributeError, OSError, ValueError):  # no real stderr (embedded, captured)
         import pybullet
 
-        return pybullet
+        return cast(ModuleType, pybullet)
     sys.stderr.flush()
     saved = os.dup(fd)
     try:
@@ -35,7 +35,7 @@ def _quiet_import() -> ModuleType:
     finally:
         os.dup2(saved, fd)
         os.close(saved)
-    return pybullet
+    return cast(ModuleType, pybullet)
 
 
 pb: Any = _quiet_import()
