@@ -51,6 +51,15 @@ def test_defaults_are_table_one() -> None:
         ({"net_device": "cuda:x"}, "net_device: must be cpu, cuda, cuda:N or auto"),
         ({"lamda": 0.9}, "unknown parameter 'lamda'"),
         ({"Theta-Max": 0.5}, "did you mean 'theta_max'"),
+        # bounded by what a run can do: L = 10⁸ was accepted and ran for ever
+        ({"L": 100_000_000}, "L: must be <= 50; got 100000000"),
+        ({"U": 10_000}, "U: must be <= 360"),
+        ({"max_attempts": 10**9}, "max_attempts: must be <= 1000"),
+        ({"nms_window": 41}, "nms_window: must be <= 40"),
+        ({"fps": 1e9}, "fps: must be <= 240"),
+        ({"max_velocity": 1e9}, "max_velocity: must be <= 5"),
+        ({"look_again": 4}, r"look_again: must be an integer in \[0, 3\]; got 4"),
+        ({"look_again": True}, "look_again"),
     ],
 )
 def test_bad_values_name_the_key(change: dict[str, object], match: str) -> None:

@@ -370,6 +370,28 @@ class RunConfig:
             "max_attempts",
         ):
             at_least(name, 1)
+        # What the method can do in a phase and a run: past these a run would not end
+        # in any useful time (L = 10⁸ waypoints ran for ever).
+        for name, most in (
+            ("L", 50),
+            ("U", 360),
+            ("V", 180),
+            ("max_attempts", 1000),
+            ("objects", 100),
+            ("nms_window", self.resolution),
+        ):
+            if getattr(self, name) > most:
+                raise ConfigError(f"{name}: must be <= {most}; got {getattr(self, name)}")
+        for name, most_f in (
+            ("fps", 240.0),
+            ("max_velocity", 5.0),
+            ("max_acceleration", 50.0),
+            ("max_jerk", 1000.0),
+            ("cube_size", 2.0),
+            ("radius", 2.0),
+        ):
+            if getattr(self, name) > most_f:
+                raise ConfigError(f"{name}: must be <= {most_f:g}; got {getattr(self, name)!r}")
 
     @property
     def critic(self) -> str | None:
