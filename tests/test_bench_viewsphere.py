@@ -65,11 +65,30 @@ def test_a_small_run_writes_results_a_table_and_resumes(tmp_path: Path) -> None:
     # A run stopped half-way (one pose recorded, a torn line) continues from there.
     (out / "records" / "005_tomato_soup_can.jsonl").write_text(lines[1] + '\n{"pose": 0, ')
     assert _run(out, *args) == 0
+    # the torn fragment was cut, so the pose run again is a whole line of its own
+    rerun = (out / "records" / "005_tomato_soup_can.jsonl").read_text().splitlines()
+    assert len(rerun) == 2 and sorted(json.loads(x)["pose"] for x in rerun) == [0, 1]
     again = json.loads((out / "results.json").read_text())
     assert (
         again["policies"]["bfs"]["objects"]["005_tomato_soup_can"]["success_at_step"]
         == (can["success_at_step"])
     )
+
+
+def test_a_second_run_into_the_same_folder_is_refused_while_the_first_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from heapgrasp.loop.records import RunDir
+
+    out = tmp_path / "run"
+    holder = RunDir(out).lock()  # the first run, still going
+    try:
+        args = ["--objects", "005_tomato_soup_can", "--poses", "1", "--no-execute"]
+        assert _run(out, *args) == 2
+        assert "is being written by" in capsys.readouterr().err
+        assert not (out / "records").exists()  # it did none of the work
+    finally:
+        holder.unlock()
 
 
 def test_other_settings_in_the_same_folder_are_refused(

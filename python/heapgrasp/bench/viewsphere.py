@@ -681,11 +681,19 @@ def figures(results: Mapping[str, Any], out: Path) -> None:
 # --------------------------------------------------------------------------------------
 def _read_records(path: Path) -> dict[int, dict[str, Any]]:
     """A records file's poses (the last line of a pose wins; a torn last line, from a
-    run that was killed while writing, is ignored)."""
+    run that was killed while writing, is cut off the file)."""
     out: dict[int, dict[str, Any]] = {}
     if not path.is_file():
         return out
-    for line in path.read_text().splitlines():
+    data = path.read_bytes()
+    if data and not data.endswith(b"\n"):
+        # cut the torn line off, or the next record appended would join it and be lost
+        keep = data.rfind(b"\n") + 1
+        with path.open("r+b") as f:
+            f.truncate(keep)
+        print(f"heapgrasp: cut a torn last record off {path}", file=sys.stderr)
+        data = data[:keep]
+    for line in data.decode().splitlines():
         try:
             rec = json.loads(line)
         except json.JSONDecodeError:
@@ -1087,11 +1095,21 @@ def command(args: argparse.Namespace) -> int:
         return 2
     if args.out is None:
         args.out = Path("runs") / f"bench-viewsphere-{datetime.now():%Y%m%d-%H%M%S}"
+    from heapgrasp.loop.records import RunDir, RunLockedError
+
+    try:
+        # one writer per --out: a second run with the same settings would redo the work
+        rundir = RunDir(args.out).lock()
+    except RunLockedError as exc:
+        print(f"heapgrasp: error: {exc}", file=sys.stderr)
+        return 2
     try:
         results = run_bench(args)
     except ImportError as exc:
         print(f"heapgrasp: error: {exc}", file=sys.stderr)
         return 2
+    finally:
+        rundir.unlock()
     print(markdown_table(results))
     print(f"results: {args.out / 'results.json'}", file=sys.stderr)
     return 1 if results["errors"] else 0

@@ -6,8 +6,8 @@ grid, r = 0.33 m, θ_max = π/5, U×V = 40×20, L = 3, λ = 0.9, ε, γ1 = 0.2, 
 first waypoint then 0.35; VGN's smoothing and NMS; the camera's motion limits) and our
 extensions, which are not in the paper. The defaults are Table I plus the extensions
 measured to help (roof trimming, the learned critic, the failed-grasp memory, the target
-column, the look again before giving up); the ``paper`` preset is Table I with nothing added. A TOML file holds any subset
-of the settings at top level, e.g.::
+column, the look again before giving up); the ``paper`` preset is Table I with nothing
+added. A TOML file holds any subset of the settings at top level, e.g.::
 
     method = "heapgrasp"
     L = 3
