@@ -232,3 +232,16 @@ def test_the_oracle_counts_eq14_on_the_configured_column() -> None:
     assert isinstance(scorer, OracleViewScorer) and scorer.frames_per_candidate == ORACLE_FRAMES
     assert scorer.target_radius == 0.05
     assert make_view_scorer(RunConfig(method="no-vp")) is None
+
+
+def test_files_are_stored_as_absolute_paths(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # a run is resumed, shown and replayed from anywhere
+    monkeypatch.chdir(tmp_path)
+    c = RunConfig(grasp_weights="w.onnx", view_weights="~/v.onnx", grasp_critic="c.onnx")
+    assert c.grasp_weights == str(tmp_path / "w.onnx")
+    assert c.view_weights == str(Path("~/v.onnx").expanduser())
+    assert c.grasp_critic == str(tmp_path / "c.onnx")
+    assert RunConfig(grasp_critic="auto").grasp_critic == "auto"
+    assert RunConfig.from_mapping(c.to_dict()) == c  # read back unchanged

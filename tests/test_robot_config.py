@@ -40,6 +40,8 @@ def test_defaults_load_and_the_gripper_uses_the_arm_host(tmp_path: Path) -> None
         ),
         ("arm = 3\n", r"\[arm\] must be a table"),
         ("[arm\n", "not valid TOML"),
+        ("[gripper]\nport = true\n", "port must be of type int, got True"),
+        ("[camera]\nwidth = false\n", "width must be of type int, got False"),
     ],
 )
 def test_bad_values_are_named(tmp_path: Path, text: str, message: str) -> None:
@@ -53,6 +55,14 @@ def test_bad_values_are_named(tmp_path: Path, text: str, message: str) -> None:
 def test_a_missing_file_is_named(tmp_path: Path) -> None:
     with pytest.raises(RobotConfigError, match="not found"):
         RobotConfig.load(tmp_path / "nope.toml")
+    binary = tmp_path / "robot.toml"
+    binary.write_bytes(bytes(range(256)))
+    with pytest.raises(RobotConfigError, match="not a text file") as err:
+        RobotConfig.load(binary)
+    assert str(binary) in str(err.value)
+    with pytest.raises(RobotConfigError, match="cannot be read") as err:
+        RobotConfig.load(tmp_path)  # a folder
+    assert str(tmp_path) in str(err.value)
 
 
 def test_calibration_and_method_are_kept() -> None:

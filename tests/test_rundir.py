@@ -228,3 +228,15 @@ def test_a_run_saved_before_look_again_is_read_as_it_ran(tmp_path: Path) -> None
     rundir.write_config(RunConfig(look_again=1))
     again = rundir.read_config()
     assert again is not None and again.look_again == 1
+
+
+def test_a_bad_segmentation_file_is_refused_before_any_scene(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    junk = tmp_path / "seg.onnx"
+    junk.write_bytes(os.urandom(256))
+    out = tmp_path / "run"
+    argv = ["run", "--objects", "2", "--quiet", "--out", str(out)]
+    assert main([*argv, "--set", "segmenter=network", "--set", f"seg_weights={junk}"]) == 2
+    assert "seg_weights" in capsys.readouterr().err
+    assert not (out / "scenes.jsonl").exists()

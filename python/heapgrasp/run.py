@@ -73,11 +73,17 @@ REFUSED: tuple[type[Exception], ...] = (
 
 def preflight(config: RunConfig, *, viz: bool = False) -> None:
     """Checks, once and before any scene, what a run needs: that its objects fit on the
-    table, and the grasp planner, the view scorer and the critic (loading their weights)
+    table, and the grasp planner, the view scorer, the critic and the segmentation
+    network (loading their weights)
     — so that a count that cannot be placed, a missing optional dependency (PyTorch for
     the networks, rerun-sdk for ``viz``) or a bad weights file is one clear error, not a
     failed record per scene."""
-    from heapgrasp.loop.phase import make_critic, make_grasp_planner, make_view_scorer
+    from heapgrasp.loop.phase import (
+        make_critic,
+        make_grasp_planner,
+        make_segmenter,
+        make_view_scorer,
+    )
     from heapgrasp.sim.build import object_library, table_capacity
 
     library = object_library(config, on_skip=_warn)
@@ -95,6 +101,8 @@ def preflight(config: RunConfig, *, viz: bool = False) -> None:
     make_grasp_planner(config)
     make_view_scorer(config)
     make_critic(config)
+    if config.segmenter == "network":  # a bad file: one error, not a failed scene each
+        make_segmenter(config, None)
     if viz:
         from heapgrasp.viz.recorder import import_rerun
 

@@ -42,6 +42,7 @@ __all__ = [
     "MOUNTS",
     "OBJECT_SETS",
     "PAPER_EXTENSIONS",
+    "PATH_SETTINGS",
     "PRESETS_DIR",
     "SEGMENTERS",
     "STARTS",
@@ -66,6 +67,8 @@ LAYOUTS = ("pile", "packed")
 CATEGORIES = ("transparent", "specular", "opaque", "mixed")
 MOUNTS = ("free", "arm")
 OBJECT_SETS = ("procedural", "all")
+#: Settings that name a file or folder (stored absolute, :class:`RunConfig`).
+PATH_SETTINGS = ("grasp_weights", "view_weights", "seg_weights", "object_dir", "grasp_critic")
 #: The shipped presets: ``NAME.toml`` files of :class:`RunConfig` fields.
 PRESETS_DIR = Path(__file__).resolve().parent / "presets"
 
@@ -253,6 +256,14 @@ class RunConfig:
     viewing as the phase did and carving the same grid. 0: stop at once (the paper)."""
 
     def __post_init__(self) -> None:
+        # Files as absolute paths: a saved run is resumed, shown and replayed from
+        # anywhere (a relative path held the folder the run happened to start in).
+        for name in PATH_SETTINGS:
+            value = getattr(self, name)
+            keyword = name == "grasp_critic" and value in ("auto", "none", "default")
+            if isinstance(value, str) and value.strip() and not keyword:
+                object.__setattr__(self, name, str(Path(value).expanduser().absolute()))
+
         def choice(name: str, options: tuple[str, ...]) -> None:
             value = getattr(self, name)
             if value not in options:

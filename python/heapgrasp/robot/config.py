@@ -302,7 +302,9 @@ def _table(cls: type[Any], section: str, data: Any, source: str) -> Any:
         expected = (
             type(default) if default is not None and default is not dataclasses.MISSING else None
         )
-        if expected is not None and not isinstance(value, expected):
+        # a bool is an int to Python, never to a robot.toml: `port = true` is refused
+        wrong_bool = isinstance(value, bool) and expected is not None and expected is not bool
+        if expected is not None and (wrong_bool or not isinstance(value, expected)):
             raise RobotConfigError(
                 f"{source}: [{section}] {key} must be of type {expected.__name__}, got {value!r}"
             )
@@ -380,6 +382,10 @@ class RobotConfig:
             raise RobotConfigError(f"robot config not found: {p}") from None
         except tomllib.TOMLDecodeError as exc:
             raise RobotConfigError(f"{p}: not valid TOML: {exc}") from None
+        except UnicodeDecodeError as exc:  # a binary file
+            raise RobotConfigError(f"{p}: not a text file (TOML is UTF-8 text): {exc}") from None
+        except OSError as exc:  # a directory, no permission
+            raise RobotConfigError(f"{p}: cannot be read: {exc}") from None
         return cls.from_mapping(data, source=str(p))
 
     @property
