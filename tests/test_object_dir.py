@@ -288,3 +288,14 @@ def test_bad_object_dirs_exit_2_naming_the_file_and_the_problem(
     assert not (out / "scenes.jsonl").exists()
     with pytest.raises(ConfigError, match="object_dir: must be a directory path"):
         RunConfig(object_dir="")
+
+
+def test_objects_named_in_any_script_load(tmp_path: Path, cache: Path) -> None:
+    # the name went into an ASCII-only OBJ header and the object was skipped
+    folder = tmp_path / "unicode"
+    folder.mkdir()
+    trimesh.creation.box(extents=(0.05, 0.06, 0.08)).export(str(folder / "objé.obj"))
+    trimesh.creation.box(extents=(0.04, 0.06, 0.07)).export(str(folder / "my object ü 🍎.obj"))
+    models = user_models(folder, cache)
+    assert [m.name for m in models] == ["user/my object ü 🍎", "user/objé"]
+    assert all(m.visual_mesh.is_file() for m in models)

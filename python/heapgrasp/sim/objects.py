@@ -267,6 +267,8 @@ def _checked(mesh: object, p: Path) -> tuple[FloatArray, IntArray]:
 def _obj_text(vertices: FloatArray, faces: IntArray, header: str) -> str:
     """OBJ file text of a triangle mesh, with fixed formatting (deterministic bytes)."""
     fmt = f"{{:.{_DECIMALS}f}}"  # callers pass _round()ed vertices: no "-0.000000000"
+    # the header may hold the user's file name: kept ASCII, escaped ("objé" -> "obj\xe9")
+    header = header.encode("ascii", "backslashreplace").decode("ascii")
     lines = [f"# {header}", f"# {len(vertices)} vertices, {len(faces)} triangles, metres"]
     for x, y, z in vertices.tolist():
         xs, ys, zs = (fmt.format(c + 0.0) for c in (x, y, z))
