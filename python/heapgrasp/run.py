@@ -18,7 +18,6 @@ PyBullet world); a scene that raises is recorded with its error and the run goes
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 import traceback
@@ -204,8 +203,10 @@ def _safe_scene(
 
 
 def _init_worker() -> None:
-    # One core per scene: the pool provides the parallelism.
-    os.environ["HEAPGRASP_NUM_THREADS"] = "1"
+    # One core per scene: the pool provides the parallelism; a worker dies with the run.
+    from heapgrasp.loop.workers import init_worker
+
+    init_worker()
     try:
         import torch
 

@@ -816,7 +816,9 @@ def _tasks(
 
 
 def _init_worker() -> None:
-    os.environ.setdefault("HEAPGRASP_NUM_THREADS", "1")
+    from heapgrasp.loop.workers import init_worker
+
+    init_worker(int(os.environ.get("HEAPGRASP_NUM_THREADS", "1")))
 
 
 def _safe_pose(task: PoseTask) -> dict[str, Any]:

@@ -229,7 +229,9 @@ def _one(args: tuple[CriticDataConfig, int, str]) -> str:
 
 
 def _init_worker() -> None:
-    os.environ["HEAPGRASP_NUM_THREADS"] = "1"
+    from heapgrasp.loop.workers import init_worker
+
+    init_worker()  # one core each, and dying with the parent
 
 
 def generate(config: CriticDataConfig, out: Path, *, workers: int = 1) -> list[Path]:

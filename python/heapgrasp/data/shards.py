@@ -190,7 +190,9 @@ def write_shard(config: ShardedConfig, shard: int, out: str) -> tuple[int, int, 
 
 
 def _init_worker() -> None:
-    os.environ["HEAPGRASP_NUM_THREADS"] = "1"
+    from heapgrasp.loop.workers import init_worker
+
+    init_worker()  # one core each, and dying with the parent
 
 
 # --------------------------------------------------------------------------- manifest
