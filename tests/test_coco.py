@@ -99,3 +99,64 @@ def test_bad_input_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     args = ["seg", "coco", str(path), "--images", str(tmp_path), "--out", str(tmp_path / "c")]
     assert main([*args, "--class", "transparent=glass"]) == 2
     assert "not found" in capsys.readouterr().err
+
+
+def _write(tmp_path: Path, data: dict[str, object]) -> Path:
+    path = tmp_path / "labels.json"
+    path.write_text(json.dumps(data))
+    return path
+
+
+def test_images_of_one_stem_and_a_repeated_id_lose_nothing(tmp_path: Path) -> None:
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for name, grey in (("a.jpg", 90), ("a.png", 160), ("b.png", 30)):
+        Image.fromarray(np.full((20, 30, 3), grey, np.uint8)).save(photos / name)
+    box = [[2, 2, 12, 2, 12, 12, 2, 12]]
+    images = [
+        {"id": 1, "file_name": "a.jpg", "width": 30, "height": 20},
+        {"id": 2, "file_name": "a.png", "width": 30, "height": 20},
+        {"id": 3, "file_name": "b.png", "width": 30, "height": 20},
+    ]
+    data = {
+        "images": images,
+        "categories": [{"id": 1, "name": "glass"}],
+        "annotations": [{"image_id": 2, "category_id": 1, "segmentation": box}],
+    }
+    out = tmp_path / "out"
+    summary = convert(_write(tmp_path, data), photos, out, {"glass": "transparent"})
+    written = sorted(p.name for p in (out / "images").iterdir())
+    assert summary["images"] == 3 and written == ["a_jpg.png", "a_png.png", "b.png"]
+    assert sorted(p.name for p in (out / "masks").iterdir()) == written
+    # the annotation is on a.png's mask only
+    assert np.asarray(Image.open(out / "masks" / "a_png.png")).any()
+    assert not np.asarray(Image.open(out / "masks" / "a_jpg.png")).any()
+    # one id for two images: refused before anything is written
+    data["images"] = [images[0], {**images[2], "id": 1}]
+    again = tmp_path / "again"
+    with pytest.raises(CocoError, match=r"images\[1\]: image id 1 appears twice"):
+        convert(_write(tmp_path, data), photos, again, {"glass": "transparent"})
+    assert not again.exists()
+
+
+@pytest.mark.parametrize(
+    ("change", "named"),
+    [
+        ({"categories": [{"name": "glass"}]}, r"categories\[0\]: no 'id'"),
+        ({"categories": ["glass"]}, r"categories\[0\]: must be an object"),
+        ({"images": [{"id": 7, "width": 30, "height": 20}]}, r"'file_name' must be"),
+        ({"images": [{"id": 7, "file_name": "a.jpg", "height": 20}]}, r"no 'width'"),
+        ({"images": [{"id": "a", "file_name": "a.jpg"}]}, r"'id' must be a whole number"),
+        (
+            {"annotations": [{"image_id": 7, "category_id": 1, "area": "a", "segmentation": []}]},
+            r"annotations\[0\]: 'area' must be a number, got 'a'",
+        ),
+    ],
+)
+def test_malformed_entries_are_named(tmp_path: Path, change: dict[str, object], named: str) -> None:
+    path = _coco(tmp_path, [])
+    data = {**json.loads(path.read_text()), **change}
+    classes = parse_class_map(CLASSES)
+    with pytest.raises(CocoError, match=named):
+        convert(_write(tmp_path, data), tmp_path / "photos", tmp_path / "o", classes)
+    assert not (tmp_path / "o").exists()

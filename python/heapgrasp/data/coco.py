@@ -94,6 +94,62 @@ def _polygons(polys: Any, h: int, w: int, where: str) -> npt.NDArray[np.bool_]:
     return out
 
 
+def _integer(obj: Any, key: str, where: str) -> int:
+    """``obj[key]`` as an integer; a :class:`CocoError` naming ``where`` and the key
+    where it is missing or not a whole number."""
+    if not isinstance(obj, dict):
+        raise CocoError(f"{where}: must be an object, got {obj!r:.60}")
+    if key not in obj:
+        raise CocoError(f"{where}: no {key!r}")
+    value = obj[key]
+    if isinstance(value, bool) or not isinstance(value, int | float) or value != int(value):
+        raise CocoError(f"{where}: {key!r} must be a whole number, got {value!r:.60}")
+    return int(value)
+
+
+def _number(obj: dict[str, Any], key: str, where: str) -> float:
+    value = obj[key]
+    if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+        raise CocoError(f"{where}: {key!r} must be a number, got {value!r:.60}")
+    return float(value)
+
+
+def _text(obj: Any, key: str, where: str) -> str:
+    if not isinstance(obj, dict):
+        raise CocoError(f"{where}: must be an object, got {obj!r:.60}")
+    value = obj.get(key)
+    if not isinstance(value, str) or not value:
+        raise CocoError(f"{where}: {key!r} must be a non-empty string, got {value!r:.60}")
+    return value
+
+
+def _output_stems(images: Mapping[int, dict[str, Any]], src: Path) -> dict[int, str]:
+    """The output name of every image: its ``file_name`` without the extension, folders
+    joined by ``__``; images that would share a name (``a.png`` and ``a.jpg``) keep their
+    extension in it (``a_png``, ``a_jpg``); the same file named twice is an error."""
+    plain = {
+        i: Path(str(im["file_name"])).with_suffix("").as_posix().replace("/", "__")
+        for i, im in images.items()
+    }
+    count: dict[str, int] = {}
+    for stem in plain.values():
+        count[stem] = count.get(stem, 0) + 1
+    out: dict[int, str] = {}
+    seen: dict[str, int] = {}
+    for i, stem in plain.items():
+        if count[stem] > 1:
+            suffix = Path(str(images[i]["file_name"])).suffix.lstrip(".").lower()
+            stem = f"{stem}_{suffix}" if suffix else stem
+        if stem in seen:
+            raise CocoError(
+                f"{src}: images {seen[stem]} and {i} are the same file "
+                f"{images[i]['file_name']!r}: each would overwrite the other's mask"
+            )
+        seen[stem] = i
+        out[i] = stem
+    return out
+
+
 def convert(
     annotations: str | os.PathLike[str],
     images_dir: str | os.PathLike[str],
@@ -119,26 +175,45 @@ def convert(
         raise CocoError(f"unmapped must be 'error' or 'background', got {unmapped!r}")
     classes: dict[int, int] = {}
     missing = []
-    for cat in data["categories"]:
-        name = str(cat.get("name"))
+    for c, cat in enumerate(data["categories"]):
+        where = f"{src}: categories[{c}]"
+        cat_id = _integer(cat, "id", where)
+        name = _text(cat, "name", where)
+        if cat_id in classes:
+            raise CocoError(f"{where}: category id {cat_id} appears twice")
         cls = class_map.get(name)
         if cls is None:
             missing.append(name)
             cls = "background"
         if cls not in CLASS_IDS:
             raise CocoError(f"category {name!r} maps to {cls!r}, not one of {', '.join(CLASS_IDS)}")
-        classes[int(cat["id"])] = CLASS_IDS[cls]
+        classes[cat_id] = CLASS_IDS[cls]
     if missing and unmapped == "error":
         raise CocoError(
             f"{src}: categories mapped to no class: {', '.join(sorted(missing))} (map them "
             "with --class CLASS=NAME, or pass --unmapped background)"
         )
-    images = {int(im["id"]): im for im in data["images"]}
+    images: dict[int, dict[str, Any]] = {}
+    for i, im in enumerate(data["images"]):
+        where = f"{src}: images[{i}]"
+        image_id = _integer(im, "id", where)
+        if image_id in images:  # one image's annotations would be painted on the other
+            raise CocoError(f"{where}: image id {image_id} appears twice")
+        _text(im, "file_name", where)
+        _integer(im, "width", where)
+        _integer(im, "height", where)
+        images[image_id] = im
+    stems = _output_stems(images, src)
     by_image: dict[int, list[dict[str, Any]]] = {i: [] for i in images}
     for a, ann in enumerate(data["annotations"]):
-        if int(ann.get("image_id", -1)) not in images:
-            raise CocoError(f"{src}: annotations[{a}] names an unknown image {ann.get('image_id')}")
-        by_image[int(ann["image_id"])].append({**ann, "_index": a})
+        where = f"{src}: annotations[{a}]"
+        image_id = _integer(ann, "image_id", where)
+        if image_id not in images:
+            raise CocoError(f"{where} names an unknown image {image_id}")
+        _integer(ann, "category_id", where)
+        if "area" in ann:
+            _number(ann, "area", where)
+        by_image[image_id].append({**ann, "_index": a})
     root = Path(images_dir)
     out_dir = Path(out)
     (out_dir / "images").mkdir(parents=True, exist_ok=True)
@@ -174,7 +249,7 @@ def convert(
                 raise CocoError(f"{where}: unknown category {ann.get('category_id')}")
             mask[region] = class_id
             drawn += 1
-        stem = Path(str(im["file_name"])).with_suffix("").as_posix().replace("/", "__")
+        stem = stems[image_id]
         if path.suffix.lower() == ".png":
             shutil.copyfile(path, out_dir / "images" / f"{stem}.png")
         else:
