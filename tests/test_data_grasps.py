@@ -216,6 +216,20 @@ def test_a_shard_run_again_has_the_same_bytes_and_resume_skips(
     assert shard_path(out, 0).read_bytes() == first
     assert shard_path(out, 1).stat().st_mtime_ns == kept  # kept, not redone
     assert manifest["complete"] and read_manifest(out)["config"]["scenes"] == 2
+    # a damaged shard (bytes flipped in a member, cut short, emptied) is written again
+    # on the rerun, named, and the dataset is whole again: the same bytes
+    good = shard_path(out, 0).read_bytes()
+    middle = len(good) // 2
+    for damaged in (
+        good[:middle] + bytes(b ^ 0xFF for b in good[middle : middle + 64]) + good[middle + 64 :],
+        good[: len(good) // 3],
+        b"",
+    ):
+        shard_path(out, 0).write_bytes(damaged)
+        manifest = generate(CONFIG, out, progress=False)
+        assert shard_path(out, 0).read_bytes() == good
+        assert manifest["complete"]
+        assert shard_path(out, 1).stat().st_mtime_ns == kept
     with pytest.raises(ValueError, match="max_objects: 2 there, 3 asked"):
         generate(GraspDataConfig(**{**CONFIG.identity(), "scenes": 2, "max_objects": 3}), out)
     # nor do shards made with other loop settings, or by another labeller

@@ -52,6 +52,7 @@ __all__ = [
     "run_scenes",
     "save_shard",
     "shard_path",
+    "shard_problem",
     "write_shard",
 ]
 
@@ -219,9 +220,44 @@ def _holds(out: Path, config: ShardedConfig, shard: int) -> bool:
     path = shard_path(out, shard)
     if not path.exists():
         return False
+    problem = shard_problem(path)
+    if problem is not None:  # written again: the shard's scenes give the same bytes
+        print(f"heapgrasp: {path} is damaged ({problem}); writing it again", file=sys.stderr)
+        return False
     with np.load(path) as data:
         # a shard made for more scenes than now asked for is kept whole (nothing lost)
         return int(data["scenes"]) >= len(config.shard_scenes(shard))
+
+
+#: :func:`shard_problem`'s verdicts by (path, size, modification time): the manifest is
+#: rewritten after every shard, and a file checked once need not be read again.
+_CHECKED: dict[tuple[str, int, int], str | None] = {}
+
+
+def shard_problem(path: Path) -> str | None:
+    """What is wrong with a shard file, None if nothing: it must be a whole zip archive
+    whose every member passes its CRC-32 check (a truncated, empty or garbled file does
+    not) and holds the ``scenes`` count."""
+    stat = path.stat()
+    key = (str(path), stat.st_size, stat.st_mtime_ns)
+    if key not in _CHECKED:
+        _CHECKED[key] = _check_archive(path)
+    return _CHECKED[key]
+
+
+def _check_archive(path: Path) -> str | None:
+    try:
+        with zipfile.ZipFile(path) as archive:
+            bad = archive.testzip()
+            if bad is not None:
+                return f"member {bad} fails its CRC check"
+            if "scenes.npy" not in archive.namelist():
+                return "no 'scenes' entry"
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError, RuntimeError) as exc:
+        return f"{type(exc).__name__}: {exc}"
+    except Exception as exc:  # zlib.error and the like: a garbled member
+        return f"{type(exc).__name__}: {exc}"
+    return None
 
 
 def _shard_entry(path: Path, spec: DatasetSpec) -> dict[str, Any]:
@@ -244,7 +280,7 @@ def _write_manifest(
     shards = {}
     for shard in range(config.shards):
         path = shard_path(out, shard)
-        if path.exists():
+        if path.exists() and shard_problem(path) is None:  # a damaged one is written again
             shards[path.name] = _shard_entry(path, spec)
     totals = {
         key: sum(s[key] for s in shards.values()) for key in ("samples", "dropped", *spec.counts)
