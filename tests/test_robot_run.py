@@ -151,6 +151,24 @@ def test_replay_plans_the_recorded_phases_again(rig: Rig, tmp_path: Path) -> Non
     assert changed["phases_replayed"] == len(record["phases"])
     assert main(["replay", str(out), "--set", "lam=0.7", "--out", str(tmp_path / "c.json")]) == 0
     assert main(["replay", str(out), "--set", "lamb=0.7"]) == 2  # a typo is named
+    # frames missing or damaged: refused by name, not replayed from what is left
+    phase = out / "frames" / "scene_000" / "phase_000"
+    first = phase / "000_look.npz"
+    kept = first.read_bytes()
+    for damage, named in (
+        (lambda: first.unlink(), "recording 000 is missing"),
+        (lambda: first.write_bytes(kept[: len(kept) // 2]), "cannot be read"),
+        (lambda: first.write_bytes(b""), "cannot be read"),
+    ):
+        damage()
+        with pytest.raises(RobotConfigError, match=named):
+            replay(out, out=tmp_path / "damaged.json")
+        first.write_bytes(kept)
+    assert not (tmp_path / "damaged.json").exists()
+    last = sorted(phase.glob("*.npz"))[-1]
+    last.unlink()  # the last capture of the phase: its frames are short
+    with pytest.raises(RobotConfigError, match="frames were recorded"):
+        replay(out, out=tmp_path / "damaged.json")
 
 
 def test_check_reports_every_device(rig: Rig, tmp_path: Path) -> None:

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,6 +30,7 @@ import numpy.typing as npt
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.motion import TimedPath
 from heapgrasp.perception.frames import Capture, Frame
+from heapgrasp.robot.errors import RobotConfigError
 from heapgrasp.robot.interfaces import Arm, Contact
 
 __all__ = [
@@ -85,7 +88,19 @@ class Recorded:
 
 
 def _load(path: Path) -> Recorded:
-    with np.load(path) as z:
+    """One saved look or capture; a file that cannot be read is a
+    :class:`~heapgrasp.robot.errors.RobotConfigError` naming it."""
+    try:
+        return _read(path)
+    except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        raise RobotConfigError(
+            f"{path}: a recorded frame file that cannot be read ({type(exc).__name__}: {exc})"
+        ) from None
+
+
+def _read(path: Path) -> Recorded:
+    # the file opened here and closed here, whatever np.load makes of it
+    with open(path, "rb") as fh, np.load(fh) as z:
         kind = str(z["kind"])
         poses, times = z["poses"], z["times"]
         frames: list[Frame] = []
@@ -116,8 +131,19 @@ def phase_dirs(frames_dir: Path, scene: int) -> list[Path]:
 
 
 def load_phase(phase_dir: Path) -> list[Recorded]:
-    """The looks and captures of one recorded phase, in the order they were taken."""
-    return [_load(p) for p in sorted(phase_dir.glob("*.npz"))]
+    """The looks and captures of one recorded phase, in the order they were taken. They
+    are numbered from ``000`` without a gap (:class:`RecordingArm`): a missing one is a
+    :class:`~heapgrasp.robot.errors.RobotConfigError` naming it, as is a file that
+    cannot be read."""
+    files = sorted(phase_dir.glob("*.npz"))
+    for k, path in enumerate(files):
+        number = path.name.split("_", 1)[0]
+        if number != f"{k:03d}":
+            raise RobotConfigError(
+                f"{phase_dir}: recording {k:03d} is missing (found {path.name} in its place); "
+                "the phase cannot be replayed as it was taken"
+            )
+    return [_load(p) for p in files]
 
 
 class ArmWrapper:

@@ -162,11 +162,23 @@ def replay(
         scene = int(record["scene"])
         recorded = record.get("phases") or record.get("phases_planned") or []
         dirs = phase_dirs(frames_dir, scene)
+        if len(dirs) < len(recorded):
+            raise RobotConfigError(
+                f"{frames_dir / f'scene_{scene:03d}'}: {len(recorded)} phase(s) recorded, "
+                f"the frames of {len(dirs)} there: replay needs every phase's frames"
+            )
         pipeline = None
         for k, phase_dir in enumerate(dirs):
             items = load_phase(phase_dir)
             if not items or not items[0].frames:
                 continue
+            seen = recorded[k].get("frames") if k < len(recorded) else None
+            served = sum(len(item.frames) for item in items)
+            if isinstance(seen, int) and served < seen:
+                raise RobotConfigError(
+                    f"{phase_dir}: {seen} frames were recorded, {served} are there: replay "
+                    "needs every frame the phase saw"
+                )
             arm = ReplayArm(items)
             if pipeline is None:
                 pipeline = real_pipeline(config, _Robot(arm, _Gripper()))
