@@ -332,3 +332,22 @@ def test_replay_refuses_a_simulated_run(tmp_path: Path, capsys: pytest.CaptureFi
     err = capsys.readouterr().err
     assert "no recorded frames" in err and "robot run --execute" in err
     assert sorted(p.name for p in out.iterdir()) == before  # no replay.json
+
+
+def test_a_bad_network_file_is_refused_before_any_device(rig: Rig, tmp_path: Path) -> None:
+    cfg = robot_toml(tmp_path, method=METHOD)
+    (tmp_path / "bad.onnx").write_bytes(np.random.default_rng(0).bytes(512))
+    text = cfg.read_text().replace(
+        'segmentation = "red.onnx"', 'segmentation = "red.onnx"\nview = "bad.onnx"'
+    )
+    cfg.write_text(text)
+    with pytest.raises(RobotConfigError, match=r"\[networks\].*bad.onnx"):
+        execute(cfg, tmp_path / "run", objects=1, drivers=rig.drivers())
+    assert rig.server.sent() == []  # the gripper was not even connected to
+    assert rig.motions() == []
+    assert not (tmp_path / "run").exists()
+    with pytest.raises(RobotConfigError, match="bad.onnx"):
+        dry_run(cfg, tmp_path / "dry", drivers=rig.drivers(), viz=False)
+    items = {i["item"]: i for i in check(cfg, drivers=rig.drivers())}
+    assert not items["grasp and view planners"]["ok"]
+    assert "bad.onnx" in items["grasp and view planners"]["detail"]

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from heapgrasp.real.setup import load, make_segmenter
+from heapgrasp.real.setup import load, make_segmenter, open_networks
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.hardware import Drivers, camera_settings
 from heapgrasp.robot.ur import pose_from_rtde
@@ -66,6 +66,17 @@ def check(config_path: str | Path, *, drivers: Drivers | None = None) -> list[di
         return "none needed (depth baseline)" if seg is None else f"{cfg.seg_weights} opens"
 
     items.append(_item("segmentation network", network))
+
+    def planners() -> str:
+        cfg = loaded.get("cfg")
+        if cfg is None:
+            raise ValueError("the settings did not load")
+        nets = open_networks(cfg)
+        view = "none (fixed views)" if nets.view_scorer is None else "view network opens"
+        critic = "no critic" if nets.critic is None else "critic opens"
+        return f"{type(nets.grasp_planner).__name__}; {view}; {critic}"
+
+    items.append(_item("grasp and view planners", planners))
 
     def camera() -> str:
         cam = d.camera(camera_settings(robot))

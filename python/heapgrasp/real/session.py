@@ -38,7 +38,7 @@ from heapgrasp.loop.records import RunDir, write_json
 from heapgrasp.loop.summary import summarize
 from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.real.recording import ArmWrapper, RecordingArm
-from heapgrasp.real.setup import load, make_segmenter, real_pipeline
+from heapgrasp.real.setup import load, open_networks, real_pipeline
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.errors import RobotConfigError, RobotError
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE, translate
@@ -145,7 +145,7 @@ def dry_run(
     """Plans one phase on the robot without moving it (see the module docstring) and
     returns what ``dry_run.json`` holds."""
     robot_cfg, cfg = load(config_path)
-    segmenter = make_segmenter(cfg)
+    networks = open_networks(cfg)  # every file checked before a device is touched
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     recorder = _viz(out, cfg) if viz else None
@@ -154,7 +154,7 @@ def dry_run(
         dry = DryRunArm(hw.arm)
         rec = RecordingArm(dry, out / "frames", 0)
         robot = _Robot(rec, hw.gripper)
-        pipeline = real_pipeline(cfg, robot, segmenter=segmenter, observer=recorder)
+        pipeline = real_pipeline(cfg, robot, networks=networks, observer=recorder)
         rec.begin_phase()
         stopped: str | None = None
         plan: PlanResult | None = None
@@ -238,7 +238,7 @@ def execute(
     if objects < 1:
         raise RobotConfigError(f"--objects must be at least 1, got {objects}")
     robot_cfg, cfg = load(config_path)
-    segmenter = make_segmenter(cfg)
+    networks = open_networks(cfg)  # every file checked before a device is touched
     rundir = RunDir(out)
     rundir.path.mkdir(parents=True, exist_ok=True)
     with rundir:
@@ -271,7 +271,7 @@ def execute(
             with HardwareRobot.connect(robot_cfg, drivers) as hw:
                 rec = RecordingArm(hw.arm, rundir.path / "frames", scene)
                 robot = _Robot(rec, hw.gripper)
-                pipeline = real_pipeline(cfg, robot, segmenter=segmenter)
+                pipeline = real_pipeline(cfg, robot, networks=networks)
 
                 def plan() -> PlanResult:
                     rec.begin_phase()

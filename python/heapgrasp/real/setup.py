@@ -13,18 +13,29 @@ the camera's frame rate, then checked against what a real robot has:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from heapgrasp.geometry.gripper import ROBOTIQ_2F140, GripperGeometry
 from heapgrasp.loop.config import ConfigError, RunConfig
-from heapgrasp.loop.phase import Pipeline, build_pipeline
+from heapgrasp.loop.phase import (
+    Pipeline,
+    build_pipeline,
+    make_critic,
+    make_grasp_planner,
+    make_view_scorer,
+)
 from heapgrasp.loop.phase import make_segmenter as loop_segmenter
 from heapgrasp.perception.segmenters import Segmenter
+from heapgrasp.planning.critic import GraspCritic
+from heapgrasp.planning.views import ViewScorer
+from heapgrasp.planning.volumes import GraspPlanner
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.errors import RobotConfigError
 from heapgrasp.robot.interfaces import Robot
 
-__all__ = ["load", "make_segmenter", "real_pipeline", "run_config"]
+__all__ = ["Networks", "load", "make_segmenter", "open_networks", "real_pipeline", "run_config"]
 
 
 def run_config(robot: RobotConfig) -> RunConfig:
@@ -116,14 +127,54 @@ class _NoSegmenter:
         raise AssertionError("the vgn baseline does not segment")
 
 
+@dataclass(frozen=True)
+class Networks:
+    """Every network file a run reads, opened and checked (:func:`open_networks`)."""
+
+    segmenter: Segmenter | None
+    grasp_planner: GraspPlanner
+    view_scorer: ViewScorer | None
+    critic: GraspCritic | None
+
+
+def open_networks(config: RunConfig, gripper: GripperGeometry = ROBOTIQ_2F140) -> Networks:
+    """Opens the segmentation, grasp, view and critic files of ``config`` for a robot with
+    ``gripper``, before any device is touched: a bad file is a
+    :class:`~heapgrasp.robot.errors.RobotConfigError` naming it, with nothing activated."""
+    segmenter = make_segmenter(config)
+    try:
+        return Networks(
+            segmenter,
+            make_grasp_planner(config, gripper),
+            make_view_scorer(config),
+            make_critic(config),
+        )
+    except ConfigError as exc:
+        raise RobotConfigError(f"[networks] {exc}") from None
+
+
 def real_pipeline(
-    config: RunConfig, robot: Robot, *, segmenter: Segmenter | None = None, observer: Any = None
+    config: RunConfig,
+    robot: Robot,
+    *,
+    segmenter: Segmenter | None = None,
+    observer: Any = None,
+    networks: Networks | None = None,
 ) -> Pipeline:
-    """The loop's pipeline on a real (or replayed) robot: no scene truth."""
+    """The loop's pipeline on a real (or replayed) robot: no scene truth; ``networks``
+    already opened (:func:`open_networks`), or opened here."""
+    if networks is not None:
+        segmenter = networks.segmenter
     seg = segmenter if segmenter is not None else make_segmenter(config)
     try:
         return build_pipeline(
-            config, robot, segmenter=seg if seg is not None else _NoSegmenter(), observer=observer
+            config,
+            robot,
+            segmenter=seg if seg is not None else _NoSegmenter(),
+            observer=observer,
+            grasp_planner=None if networks is None else networks.grasp_planner,
+            view_scorer=None if networks is None else networks.view_scorer,
+            critic=None if networks is None else networks.critic,
         )
     except ConfigError as exc:
         raise RobotConfigError(str(exc)) from None
