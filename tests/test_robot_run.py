@@ -341,12 +341,12 @@ def test_a_bad_network_file_is_refused_before_any_device(rig: Rig, tmp_path: Pat
         'segmentation = "red.onnx"', 'segmentation = "red.onnx"\nview = "bad.onnx"'
     )
     cfg.write_text(text)
-    with pytest.raises(RobotConfigError, match=r"\[networks\].*bad.onnx"):
+    with pytest.raises(RobotConfigError, match=r"\[networks\].*bad\.onnx"):
         execute(cfg, tmp_path / "run", objects=1, drivers=rig.drivers())
     assert rig.server.sent() == []  # the gripper was not even connected to
     assert rig.motions() == []
     assert not (tmp_path / "run").exists()
-    with pytest.raises(RobotConfigError, match="bad.onnx"):
+    with pytest.raises(RobotConfigError, match=r"bad\.onnx"):
         dry_run(cfg, tmp_path / "dry", drivers=rig.drivers(), viz=False)
     items = {i["item"]: i for i in check(cfg, drivers=rig.drivers())}
     assert not items["grasp and view planners"]["ok"]
