@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import itertools
 import math
+import socket
+import struct
+import threading
 
 import numpy as np
 import pytest
@@ -33,6 +36,7 @@ from heapgrasp.robot.ur import (
     continuous_roll,
     pose_from_rtde,
     pose_to_rtde,
+    probe_rtde,
 )
 from scipy.spatial.transform import Rotation
 
@@ -313,3 +317,43 @@ def test_an_uncalibrated_arm_is_refused() -> None:
     ctl = FakeController()
     with pytest.raises(DeviceError, match="robot calibrate"):
         URArm(FakeControl(ctl), FakeReceive(ctl), None, RobotConfig())  # type: ignore[arg-type]
+
+
+def test_an_arm_that_never_answers_is_named_within_seconds() -> None:
+    # a host that accepts TCP and never speaks RTDE (ur_rtde waited for ever), and one
+    # that refuses: each a ConnectionLost naming the address, in about the timeout
+    silent = socket.socket()
+    silent.bind(("127.0.0.1", 0))
+    silent.listen(1)
+    port = silent.getsockname()[1]
+    try:  # the message of the timeout, not of a connection: it waited 0.5 s, then said so
+        with pytest.raises(ConnectionLost, match=rf"127\.0\.0\.1:{port} within 0\.5 s"):
+            probe_rtde("127.0.0.1", port=port, timeout=0.5)
+    finally:
+        silent.close()
+    with pytest.raises(
+        ConnectionLost, match=rf"cannot reach the UR controller at 127\.0\.0\.1:{port}"
+    ):
+        probe_rtde("127.0.0.1", port=port, timeout=0.5)  # closed now: refused
+
+
+def test_a_controller_answering_rtde_passes_the_probe() -> None:
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(1)
+    port = server.getsockname()[1]
+
+    def answer() -> None:
+        conn, _ = server.accept()
+        with conn:
+            size, kind, version = struct.unpack(">HBH", conn.recv(5))
+            assert (size, kind, version) == (5, 86, 2)
+            conn.sendall(struct.pack(">HBB", 4, 86, 1))  # accepted
+
+    thread = threading.Thread(target=answer, daemon=True)
+    thread.start()
+    try:
+        probe_rtde("127.0.0.1", port=port, timeout=2.0)
+    finally:
+        thread.join(timeout=5)
+        server.close()

@@ -32,6 +32,8 @@ the same (global) time domain, so a frame and the TCP record are compared direct
 from __future__ import annotations
 
 import math
+import socket
+import struct
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -186,6 +188,45 @@ class PoseBuffer:
         return out
 
 
+#: RTDE's port on a UR controller, and how long a controller has to answer (s).
+RTDE_PORT = 30004
+RTDE_TIMEOUT_S = 5.0
+#: RTDE's request of the protocol version (message type ``V``) and the version asked.
+_RTDE_REQUEST_PROTOCOL_VERSION = 86
+_RTDE_PROTOCOL_VERSION = 2
+
+
+def probe_rtde(host: str, *, port: int = RTDE_PORT, timeout: float = RTDE_TIMEOUT_S) -> None:
+    """Asks ``host``'s RTDE server for its protocol version and waits at most ``timeout``
+    seconds for the connection and for an answer, so that an address nobody answers at,
+    or a host that accepts TCP and never speaks RTDE, is a :class:`ConnectionLost`
+    naming it within seconds — ``ur_rtde`` itself waits minutes, or for ever."""
+    where = f"{host}:{port}"
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as sock:
+            sock.settimeout(timeout)
+            sock.sendall(
+                struct.pack(">HBH", 5, _RTDE_REQUEST_PROTOCOL_VERSION, _RTDE_PROTOCOL_VERSION)
+            )
+            reply = b""
+            while len(reply) < 3:
+                chunk = sock.recv(3 - len(reply))
+                if not chunk:
+                    raise ConnectionLost(
+                        f"the UR controller at {where} closed the connection without answering RTDE"
+                    )
+                reply += chunk
+    except TimeoutError:
+        raise ConnectionLost(
+            f"no RTDE answer from the UR controller at {where} within {timeout:g} s (is it "
+            "on, in remote-control mode, and is [arm] host its address?)"
+        ) from None
+    except OSError as exc:  # refused, unreachable, no route, unknown name
+        raise ConnectionLost(f"cannot reach the UR controller at {where}: {exc}") from None
+    if reply[2] != _RTDE_REQUEST_PROTOCOL_VERSION:
+        raise ConnectionLost(f"{where} answered, but not as a UR controller's RTDE server")
+
+
 def connect_ur(host: str, tcp: Sequence[float]) -> tuple[Any, Any]:
     """Opens RTDE's control and receive interfaces to ``host`` and sets the TCP.
 
@@ -200,6 +241,7 @@ def connect_ur(host: str, tcp: Sequence[float]) -> tuple[Any, Any]:
         raise DeviceError(
             f"the UR driver needs ur-rtde: pip install 'heapgrasp[robot]' ({exc})"
         ) from None
+    probe_rtde(host)  # seconds, not minutes, where nothing answers
     try:
         receive = rtde_receive.RTDEReceiveInterface(host)
         control = rtde_control.RTDEControlInterface(host)
