@@ -87,21 +87,26 @@ def figure_run(summary: dict[str, Any], path: Path) -> None:
     _path_panel(left, first, size, f"scene {first['scene'] if first else '–'}, phase 0")
     groups = {"all": summary, **summary.get("per_scene_group", {})}
     names = list(groups)
-    parts = {
-        "removed": ("tab:green", lambda o: o["objects_removed"]),
-        "knocked out": ("tab:orange", lambda o: o["objects_knocked_out"]),
-        "left, graspable": ("tab:red", lambda o: o["leftovers_graspable"] or 0),
-        "left, ungraspable": (
-            "tab:gray",
-            lambda o: (o["objects_left"] or 0) - (o["leftovers_graspable"] or 0),
-        ),
+
+    def counts(o: dict[str, Any]) -> dict[str, float]:
+        left, graspable = o.get("objects_left") or 0, o.get("leftovers_graspable") or 0
+        return {
+            "removed": float(o.get("objects_removed", 0)),
+            "knocked out": float(o.get("objects_knocked_out", 0)),
+            "left, graspable": float(graspable),
+            "left, ungraspable": float(left - graspable),
+        }
+
+    colours = {
+        "removed": "tab:green",
+        "knocked out": "tab:orange",
+        "left, graspable": "tab:red",
+        "left, ungraspable": "tab:gray",
     }
+    per_group = [counts(g.get("objects") or {}) for g in groups.values()]
     bottom = np.zeros(len(names))
-    for label, (colour, count) in parts.items():
-        values = []
-        for g in groups.values():
-            o = g.get("objects") or {}
-            values.append(float(count(o)) if o else 0.0)
+    for label, colour in colours.items():
+        values = [c[label] for c in per_group]
         right.bar(names, values, bottom=bottom, color=colour, label=label)
         bottom += np.asarray(values)
     right.set_ylabel("objects")

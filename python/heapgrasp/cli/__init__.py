@@ -24,6 +24,7 @@ import argparse
 import re
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 __all__ = ["OPTIONAL_MODULES", "build_parser", "install_hint", "main"]
 
@@ -111,7 +112,8 @@ def _plain_help(parser: argparse.ArgumentParser) -> None:
     over its own formatter: raw descriptions stay raw, shown defaults stay shown)."""
     own = parser.formatter_class
     if isinstance(own, type) and not issubclass(own, _PlainMixin):
-        parser.formatter_class = type(f"Plain{own.__name__}", (_PlainMixin, own), {})
+        plain_class: Any = type(f"Plain{own.__name__}", (_PlainMixin, own), {})
+        parser.formatter_class = plain_class
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             for sub in action.choices.values():
