@@ -40,6 +40,8 @@ def test_bench_noise_compares_with_the_noise_free_grid(tmp_path: Path) -> None:
     assert low["iou"]["mean"] > high["iou"]["mean"]
     assert low["mse_percent"]["mean"] < high["mse_percent"]["mean"]
     assert (out / "table5_noise.png").stat().st_size > 0
+    page = (out / "summary.md").read_text()
+    assert table.strip() in page and "](table5_noise.png)" in page
     # every phase of a noisy run carries its comparison
     records = [
         json.loads(s) for s in (out / "no-vp-0.02" / "scenes.jsonl").read_text().splitlines()

@@ -30,6 +30,7 @@ def test_tables_from_a_small_run(tmp_path: Path) -> None:
     summaries = run_bench(base, ["no-vp"], tmp_path, progress=False, figures=False)
     text = (tmp_path / "table.md").read_text()
     assert text == markdown_tables(summaries, base)
+    assert text.strip() in (tmp_path / "summary.md").read_text()  # the folder's page
     assert "| no-vp (antipodal grasps, critic) |" in text and "92.7 (458/494)" in text
     assert (tmp_path / "no-vp" / "results.json").exists()
     assert "| Success (%) | 95 % CI |" in text and "| Grasp planning / call (ms) |" in text

@@ -53,6 +53,7 @@ def test_a_small_run_writes_results_a_table_and_resumes(tmp_path: Path) -> None:
     assert set(results["bfs_ratios"]) == set(POLICIES) - {"bfs", "information-gain"}
     table = (out / "table.md").read_text()
     assert "(Fig. 11)" in table and "(Table 1)" in table and "## Decision time" in table
+    assert table.strip() in (out / "summary.md").read_text()
     pose = can["poses"][0]
     assert {"path", "steps", "grasp", "quality_deg", "executed", "views_deg"} <= set(pose)
     assert pose["executed"] is None  # --no-execute

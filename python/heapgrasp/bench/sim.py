@@ -5,7 +5,8 @@ four equal scene groups — transparent, opaque, specular, mixed — every metho
 same seeded scenes (scene ``i`` has seed ``seed + i``). Each method's run is a normal
 :func:`heapgrasp.run.run` in ``OUT/<method>/`` (resumable), on a process pool.
 
-Writes ``OUT/table.md`` (a Table II-style overall table beside the paper's numbers and
+Writes ``OUT/summary.md`` (the tables with the figures), ``OUT/table.md`` (a Table
+II-style overall table beside the paper's numbers and
 a Table III-style table per scene group; every success rate with its 95 % interval, and
 each method's difference from no-vp with a paired scene-bootstrap interval,
 :mod:`heapgrasp.loop.stats`), ``OUT/summary.json``, ``OUT/fig5_paths.png``
@@ -25,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from heapgrasp.bench.argtypes import OBJECT_DIR_HELP, object_dir
+from heapgrasp.bench.pages import write_summary
 from heapgrasp.loop.config import METHODS, ConfigError, ConfigFile, RunConfig, presets
 from heapgrasp.loop.stats import format_interval, methods_differences, success_interval
 
@@ -170,6 +172,14 @@ def run_bench(
 
         figure_paths(summaries, out / "fig5_paths.png")
         figure_grids(base, list(methods), out / "fig4_grids.png", scene=0)
+    write_summary(
+        out,
+        markdown_tables(summaries, base),
+        [
+            ("fig5_paths.png", "Fig. 5: camera paths of scene 0's first phase"),
+            ("fig4_grids.png", "Fig. 4: the measured grid of one phase, its candidates"),
+        ],
+    )
     return summaries
 
 

@@ -65,6 +65,7 @@ from typing import Any
 import numpy as np
 
 from heapgrasp.bench.argtypes import add_ray_argument, comma_choices, int_at_least
+from heapgrasp.bench.pages import write_summary
 from heapgrasp.loop.config import parse_sets
 from heapgrasp.loop.records import write_json
 from heapgrasp.loop.viewsphere import ViewsphereConfig
@@ -967,6 +968,15 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
         (out / "table.md").write_text(markdown_table(results))
     if not args.no_figures:
         figures(results, out)
+    write_summary(
+        out,
+        markdown_table(results),
+        [
+            ("fig10_success.png", "success against steps per object (the paper's Fig. 10)"),
+            ("fig11_bfs_ratio.png", "policy / BFS success per class (Fig. 11)"),
+            ("difficulty.png", "each object's difficulty"),
+        ],
+    )
     return results
 
 
