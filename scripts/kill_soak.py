@@ -41,6 +41,7 @@ TIMINGS = {
     "planning_latency_per_waypoint_s",
     "grasp_planning_per_call_s",
     "wall_time_per_scene_s",
+    "leftover_analysis_s",
 }
 
 

@@ -316,7 +316,8 @@ def test_auto_critic_applies_where_the_shipped_weights_were_trained() -> None:
     assert make_critic(RunConfig(method="vgn")) is None
     assert RunConfig(grasp_planner="network").critic is None
     assert RunConfig(grasp_critic="none").critic is None
-    assert RunConfig(grasp_critic="x.npz", method="no-vp").critic == "x.npz"
+    # a critic file is kept as an absolute path (a run is resumed from anywhere)
+    assert RunConfig(grasp_critic="x.npz", method="no-vp").critic == str(Path("x.npz").absolute())
 
 
 def test_shipped_critic_loads_with_its_command_and_measurements() -> None:
