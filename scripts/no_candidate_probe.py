@@ -34,7 +34,15 @@ from heapgrasp.sim.gripper import MAX_OPENING, Grasp, execute_grasp
 GROUPS = ("transparent", "opaque", "specular", "mixed")
 
 
-def probe_scene(config: RunConfig, index: int, epsilon: float, most: int) -> list[dict[str, Any]]:
+def probe_scene(
+    config: RunConfig,
+    index: int,
+    epsilon: float,
+    most: int,
+    probe_planner: Any = None,
+) -> list[dict[str, Any]]:
+    """``probe_planner``: plans the probed grids in place of the loop's planner (the loop
+    itself runs as configured)."""
     seed = config.seed + index
     rows: list[dict[str, Any]] = []
     with scene_world(config, seed, GROUPS[index % 4]) as world:
@@ -52,7 +60,7 @@ def probe_scene(config: RunConfig, index: int, epsilon: float, most: int) -> lis
             if result.grasp is not None:
                 return result
             grid = perception.grasp_input()
-            planner = pipeline.grasp_planner
+            planner = probe_planner or pipeline.grasp_planner
             volumes = planner.predict(grid, pipeline.frame)
             cands = select_candidates(
                 volumes,
@@ -150,13 +158,25 @@ def main() -> int:
     ap.add_argument("--epsilon", type=float, default=0.02)
     ap.add_argument("--max", type=int, default=12)
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument(
+        "--max-opening",
+        type=float,
+        help="probe with an analytic planner that takes the hand to open this wide (m): "
+        "0.0875 for the Panda's 0.08 m is its width rule on voxel centres instead of faces",
+    )
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
     config = RunConfig(seed=args.seed).replace(parse_sets(args.set), source="--set")
     rows: list[dict[str, Any]] = []
+    planner = None
+    if args.max_opening is not None:
+        from heapgrasp.geometry.gripper import PANDA_HAND
+        from heapgrasp.planning.antipodal import AntipodalPlanner
+
+        planner = AntipodalPlanner(max_opening=args.max_opening, gripper=PANDA_HAND)
     with args.out.open("w") as f:
         for i in range(args.scenes):
-            got = probe_scene(config, i, args.epsilon, args.max)
+            got = probe_scene(config, i, args.epsilon, args.max, planner)
             rows.extend(got)
             for r in got:
                 f.write(json.dumps(r) + "\n")
