@@ -100,7 +100,7 @@ def test_other_settings_in_the_same_folder_are_refused(
     assert _run(out, *base) == 0
     before = (out / "results.json").read_text()
     capsys.readouterr()
-    assert _run(out, *base, "--seed", "3") == 1
+    assert _run(out, *base, "--seed", "3") == 2  # refused
     assert "other settings (seed)" in capsys.readouterr().err
     assert (out / "results.json").read_text() == before
 
@@ -260,7 +260,7 @@ def test_a_learned_policy_runs_from_a_given_file(
     # Another file is another run.
     other = _policy_file(tmp_path / "other.onnx", "dqn")
     capsys.readouterr()
-    assert _run(out, *args, "--weights", f"dqn={other}") == 1
+    assert _run(out, *args, "--weights", f"dqn={other}") == 2
     assert "other settings (weights)" in capsys.readouterr().err
     # A file of another model, a bad entry, a missing file: refused, naming them.
     wrong = _policy_file(tmp_path / "wrong.onnx", "pca-lr")
@@ -269,5 +269,5 @@ def test_a_learned_policy_runs_from_a_given_file(
         ("svm=x.onnx", "--weights wants MODEL=FILE"),
         (f"dqn={tmp_path / 'none.onnx'}", "not found"),
     ]:
-        assert _run(tmp_path / "bad", *args, "--weights", bad) == 1
+        assert _run(tmp_path / "bad", *args, "--weights", bad) == 2
         assert message in capsys.readouterr().err

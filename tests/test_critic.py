@@ -376,7 +376,7 @@ def test_test_split_data_measures_but_never_trains(tmp_path: Path) -> None:
     assert load_dataset([data / "scene_000000.npz"])[0]["split"] == "test"
     with pytest.raises(ValueError, match=r"scene_000000\.npz holds test-split objects"):
         load_dataset([data / "scene_000000.npz"], training=True)
-    assert main(["critic", "train", str(data), "--out", str(tmp_path / "c.onnx")]) == 1
+    assert main(["critic", "train", str(data), "--out", str(tmp_path / "c.onnx")]) == 2
     assert not (tmp_path / "c.onnx").exists()
 
 
@@ -462,7 +462,7 @@ def test_data_of_one_scene_is_consistent_and_trains(
     # The command line: an empty folder is an error; five scene files make a critic.
     data = tmp_path / "data"
     data.mkdir()
-    assert main(["critic", "train", str(data), "--out", str(tmp_path / "c.onnx")]) == 1
+    assert main(["critic", "train", str(data), "--out", str(tmp_path / "c.onnx")]) == 2
     for k in range(5):  # both classes, whatever happened in the simulator
         labelled = dict(s, outcome=np.full(n, "success" if k % 2 else "empty"))
         np.savez(data / f"scene_{k:06d}.npz", **labelled)
@@ -481,7 +481,7 @@ def test_data_of_one_scene_is_consistent_and_trains(
     # The copies have the same features, so no critic can tell them apart: AUC 0.5.
     assert report["auc_critic"] == pytest.approx(0.5)
     assert set(report["picks"]) == {"0.5", f"{critic.threshold:g}"}
-    assert main(["critic", "eval", str(out), str(tmp_path / "empty")]) == 1
+    assert main(["critic", "eval", str(out), str(tmp_path / "empty")]) == 2
 
 
 def test_the_critic_scores_the_candidates_wherever_grasps_are_planned(tmp_path: Path) -> None:

@@ -282,7 +282,7 @@ def test_cli(
     assert main([*args, "--shard-size", "1"]) == 0  # every shard there: nothing to run
     summary = json.loads(capsys.readouterr().out)
     assert summary["samples"] == 2 and summary["grasps"] > 0 and summary["complete"]
-    assert main([*args, "--shard-size", "2"]) == 1
+    assert main([*args, "--shard-size", "2"]) == 2  # refused
     assert "shard_size: 1 there, 2 asked" in capsys.readouterr().err
     assert main(["data", "grasps", str(out), "--scenes", "0"]) == 2
     assert "--scenes" in capsys.readouterr().err

@@ -149,5 +149,5 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert "pip install 'heapgrasp[ray]'" in capsys.readouterr().err
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "shard-00000.npz").write_bytes(b"x")
-    assert main(["data", "views", str(tmp_path / "junk"), "--scenes", "1", "--quiet"]) == 1
+    assert main(["data", "views", str(tmp_path / "junk"), "--scenes", "1", "--quiet"]) == 2
     assert "without a manifest" in capsys.readouterr().err

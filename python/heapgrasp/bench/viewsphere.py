@@ -1117,8 +1117,8 @@ def command(args: argparse.Namespace) -> int:
         return 2
     try:
         results = run_bench(args)
-    except ImportError as exc:
-        print(f"heapgrasp: error: {exc}", file=sys.stderr)
+    except (ImportError, ValueError, FileNotFoundError) as exc:  # refused: a missing extra,
+        print(f"heapgrasp: error: {exc}", file=sys.stderr)  # other settings, a bad file
         return 2
     finally:
         rundir.unlock()

@@ -167,10 +167,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        The exit status: 0 on success, 1 when a command fails (for benchmarks: a result
-        check failed), 2 on invalid arguments or a missing optional dependency (one line
-        naming the extra that installs it, :func:`install_hint`); ``--help`` and
-        ``--version`` return 0.
+        The exit status: 0 on success, 1 when a command fails while working (for
+        benchmarks: a result check failed), 2 when it refuses its input (invalid
+        arguments, settings or files: a ``ValueError`` naming them) or a missing optional
+        dependency (one line naming the extra that installs it, :func:`install_hint`);
+        ``--help`` and ``--version`` return 0.
     """
     try:
         status = _main(argv)
@@ -232,7 +233,10 @@ def _main(argv: Sequence[str] | None) -> int:
     except ImportError as exc:  # a missing optional dependency: one line, exit 2
         print(f"heapgrasp: error: {install_hint(exc)}", file=sys.stderr)
         return 2
-    except (OSError, ValueError, RuntimeError) as exc:
+    except (ValueError, FileNotFoundError) as exc:  # a refused input, named: exit 2
+        print(f"heapgrasp: error: {exc}", file=sys.stderr)
+        return 2
+    except (OSError, RuntimeError) as exc:  # a failure while working
         print(f"heapgrasp: error: {exc}", file=sys.stderr)
         return 1
     return status

@@ -95,6 +95,9 @@ def _generate(args: argparse.Namespace, dataset: str, **settings: Any) -> int:
     except ImportError as exc:  # --ray without Ray
         print(f"heapgrasp: error: {exc}", file=sys.stderr)
         return 2
+    except ValueError as exc:  # refused: a dataset of other settings, stray shard files
+        print(f"heapgrasp: error: {exc}", file=sys.stderr)
+        return 2
     keys = ("split", "samples", "dropped", "grasps", "complete")
     print(json.dumps({"out": str(out), **{k: manifest[k] for k in keys if k in manifest}}))
     return 0

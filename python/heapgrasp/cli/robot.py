@@ -70,7 +70,8 @@ def _robot_error(exc: Exception) -> int:
     from heapgrasp.robot.errors import RobotConfigError
 
     print(f"heapgrasp: error: {exc}", file=sys.stderr)
-    return 2 if isinstance(exc, RobotConfigError) else 1
+    # a refused input (the file, a setting, an argument) exits 2; a device's failure 1
+    return 2 if isinstance(exc, RobotConfigError | ValueError) else 1
 
 
 def _init(args: argparse.Namespace) -> int:
