@@ -101,3 +101,19 @@ def test_no_command_opens_with_pybullet_s_build_line(tmp_path: Path) -> None:
     done = subprocess.run(argv, capture_output=True, text=True, timeout=600, check=False)
     assert done.returncode == 0, done.stderr
     assert "pybullet build time" not in done.stderr + done.stdout
+
+
+@pytest.mark.parametrize(
+    ("argv", "named"),
+    [
+        (["--dpi", "1000000"], "must be in [72, 2400], got 1000000"),  # OpenCV ran out of memory
+        (["b.xyz"], "'b.xyz': the board is written as .png"),  # "could not find a writer"
+    ],
+)
+def test_robot_board_refuses_what_it_cannot_write(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], named: str
+) -> None:
+    args = [a if a.startswith("-") or a.isdigit() else str(tmp_path / a) for a in argv]
+    assert main(["robot", "board", *args]) == 2
+    assert named.replace("'b.xyz'", repr(str(tmp_path / "b.xyz"))) in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())

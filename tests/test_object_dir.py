@@ -299,3 +299,15 @@ def test_objects_named_in_any_script_load(tmp_path: Path, cache: Path) -> None:
     models = user_models(folder, cache)
     assert [m.name for m in models] == ["user/my object ü 🍎", "user/objé"]
     assert all(m.visual_mesh.is_file() for m in models)
+
+
+def test_a_flat_mesh_is_skipped_not_decomposed(tmp_path: Path, cache: Path) -> None:
+    # one triangle: V-HACD ran for minutes on it (no output); now refused by name at once
+    folder = tmp_path / "flat"
+    folder.mkdir()
+    (folder / "sheet.obj").write_text("v 0 0 0\nv 0.05 0 0\nv 0 0.05 0\nf 1 2 3\n")
+    trimesh.creation.box(extents=(0.05, 0.06, 0.08)).export(str(folder / "box.obj"))
+    bad: list[tuple[str, str]] = []
+    models = user_models(folder, cache, on_bad=lambda name, problem: bad.append((name, problem)))
+    assert [m.name for m in models] == ["user/box"]
+    assert [name for name, _ in bad] == ["user/sheet"] and "sheet.obj" in bad[0][1]

@@ -201,6 +201,34 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The print resolutions ``robot board`` accepts: past 2400 dpi the image of the 28 × 20 cm
+#: board is gigabytes (1,000,000 dpi ran OpenCV out of memory).
+BOARD_DPI = (72, 2400)
+#: The image formats ``robot board`` writes (OpenCV's writers).
+BOARD_FORMATS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+
+def _dpi(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    lo, hi = BOARD_DPI
+    if not lo <= value <= hi:
+        raise argparse.ArgumentTypeError(f"must be in [{lo}, {hi}], got {value}")
+    return value
+
+
+def _image_path(text: str) -> Path:
+    path = Path(text)
+    if path.suffix.lower() not in BOARD_FORMATS:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: the board is written as {', '.join(BOARD_FORMATS)}; "
+            f"not {path.suffix or 'a file without an extension'}"
+        )
+    return path
+
+
 def _board(args: argparse.Namespace) -> int:
     from heapgrasp.robot.calibration import CharucoBoard
 
@@ -336,8 +364,19 @@ def add_parser(
         description="Writes the board `robot calibrate` looks for (7x5 squares of 4 cm, "
         "3 cm markers, DICT_5X5_100) at the given print resolution.",
     )
-    brd.add_argument("path", nargs="?", default="charuco_board.png", help="output PNG")
-    brd.add_argument("--dpi", type=int, default=300, help="print resolution (default 300)")
+    brd.add_argument(
+        "path",
+        nargs="?",
+        type=_image_path,
+        default="charuco_board.png",
+        help="output image (.png, .jpg, .bmp or .tif; default charuco_board.png)",
+    )
+    brd.add_argument(
+        "--dpi",
+        type=_dpi,
+        default=300,
+        help=f"print resolution, {BOARD_DPI[0]} to {BOARD_DPI[1]} (default 300)",
+    )
     brd.set_defaults(func=_board)
     return p
 

@@ -904,6 +904,26 @@ def _vhacd(vertices: FloatArray, faces: IntArray, work: Path) -> list[FloatArray
     return [p for p in pieces if len(p) >= 4]
 
 
+#: The thinnest a collision mesh may be along any axis (m), and the least volume its
+#: convex hull may enclose (m³), for it to be decomposed (a flat triangle hung V-HACD).
+MIN_THICKNESS = 0.001
+MIN_HULL_VOLUME = 1e-9
+
+
+def _not_a_solid(vertices: FloatArray, faces: IntArray) -> str | None:
+    """Why a mesh is no solid to decompose, None if it is one: too few triangles, flat
+    along an axis (thinner than :data:`MIN_THICKNESS`), or a hull of no volume."""
+    if len(faces) < 4 or len(vertices) < 4:
+        return f"has {len(faces)} triangle(s)"
+    extents = vertices.max(axis=0) - vertices.min(axis=0)
+    if float(extents.min()) < MIN_THICKNESS:
+        size = " x ".join(f"{e * 1000:.1f}" for e in extents)
+        return f"is flat ({size} mm)"
+    if _hull_volume(vertices) < MIN_HULL_VOLUME:
+        return "encloses no volume"
+    return None
+
+
 def _hull_volume(points: FloatArray) -> float:
     from scipy.spatial import ConvexHull, QhullError
 
@@ -960,6 +980,10 @@ def _decomposed(
     done = sorted(folder.glob("piece_*.obj"))
     if done:
         return done
+    for v, f in parts:  # V-HACD runs for ever on a mesh that encloses nothing
+        problem = _not_a_solid(v, f)
+        if problem is not None:
+            raise ValueError(f"{name}: its collision mesh {problem}: nothing to decompose")
     work = cache / f".{folder.name}.{os.getpid()}.tmp"
     work.mkdir(parents=True, exist_ok=True)
     try:
