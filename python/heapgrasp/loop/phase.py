@@ -16,7 +16,10 @@ grasp (footnote 3 of the paper). :class:`Pipeline.plan` runs it:
    baselines take the top-scoring grasp.
 
 The extensions (:mod:`heapgrasp.loop.policies`) are asked at fixed points: the early
-stop at each view waypoint from the second on, the rim sweep after the last one.
+stop at each view waypoint from the second on, the rim sweep after the last one. Where
+step 3 finds no candidate, the phase looks again (``RunConfig.look_again``): the camera
+moves to the start turned about the scene (:data:`LOOK_AGAIN_TURNS`) and steps 2–3 run
+once more on the same grid, before the phase reports no candidate.
 
 Every method forgets candidates within ``failed_grasp_radius`` of a grasp that failed
 since the last success (:meth:`Pipeline.record_outcome`): an empty grasp usually leaves
