@@ -32,7 +32,7 @@ def test_defaults_load_and_the_gripper_uses_the_arm_host(tmp_path: Path) -> None
         ("[limits]\njoint_speed = -1\n", "joint_speed must be a number > 0"),
         ("[camera]\nwidth = 333\n", "333x240 is not a colour mode"),
         ("[camera]\nfps = 25\n", "fps must be 6, 15, 30 or 60"),
-        ("[gripper]\nforce = 300\n", "force must be in"),
+        ("[gripper]\nforce = 300\n", "force must be an integer in"),
         ("[calibration]\ncam2tcp = [[1, 0], [0, 1]]\n", "cam2tcp must be a finite 4x4"),
         (
             "[calibration]\ncam2tcp = [[2,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]\n",

@@ -319,9 +319,15 @@ class RunConfig:
         if self.grasp_critic not in ("auto", "none") and self.method == "vgn":
             raise ConfigError("grasp_critic: needs a silhouette method (not vgn)")
 
+        for name in PATH_SETTINGS:  # a file or folder's path, or none
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, str):
+                raise ConfigError(f"{name}: must be a path (a string); got {value!r}")
+
         def between(name: str, lo: float, hi: float) -> None:
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
+            number = isinstance(value, int | float) and not isinstance(value, bool)
+            if not (number and math.isfinite(value) and lo <= value <= hi):
                 raise ConfigError(f"{name}: must be in [{lo}, {hi}]; got {value!r}")
 
         def positive(name: str) -> None:
@@ -384,6 +390,7 @@ class RunConfig:
         # What the method can do in a phase and a run: past these a run would not end
         # in any useful time (L = 10⁸ waypoints ran for ever).
         for name, most in (
+            ("scenes", 1_000_000),
             ("L", 50),
             ("U", 360),
             ("V", 180),

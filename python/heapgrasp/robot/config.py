@@ -80,6 +80,17 @@ def _check_positive(section: str, obj: Any, names: Sequence[str]) -> None:
             raise RobotConfigError(f"[{section}] {name} must be a number > 0, got {v!r}")
 
 
+def _at_most(section: str, obj: Any, bounds: Mapping[str, tuple[float, str]]) -> None:
+    """Each named value within the hardware's documented range: ``name: (most, why)``; a
+    value above it is refused naming the table, the key, the value and the reason."""
+    for name, (most, why) in bounds.items():
+        value = getattr(obj, name)
+        if value > most:
+            raise RobotConfigError(
+                f"[{section}] {name} must be at most {most:g} ({why}), got {value!r}"
+            )
+
+
 @dataclass(frozen=True)
 class ArmSettings:
     """``[arm]``: the UR arm over RTDE."""
@@ -133,6 +144,30 @@ class ArmSettings:
             )
         if not (isinstance(self.settle, int | float) and 0 <= self.settle <= 5):
             raise RobotConfigError(f"[arm] settle must be in [0, 5] s, got {self.settle!r}")
+        _at_most(
+            "arm",
+            self,
+            {
+                "contact_force": (150.0, "N; a UR5e's force sensing and the 2F-140's 125 N grip"),
+                "travel_height": (1.0, "m; a UR5e reaches 0.85 m"),
+                "max_slowdown": (100.0, "times slower"),
+            },
+        )
+        offset = math.hypot(*self.tcp[:3])
+        if offset > 0.5:
+            raise RobotConfigError(
+                f"[arm] tcp is {offset:.3g} m from the flange; at most 0.5 m (a tool that long "
+                f"is not a gripper), got {list(self.tcp)}"
+            )
+        if math.hypot(*self.tcp[3:]) > 2 * math.pi + 1e-9:
+            raise RobotConfigError(
+                f"[arm] tcp's rotation vector is longer than 2π: {list(self.tcp)}"
+            )
+        if any(abs(q) > 2 * math.pi + 1e-9 for q in self.park):
+            raise RobotConfigError(
+                f"[arm] park must keep every joint within ±2π rad (a UR5e's range), got "
+                f"{list(self.park)}"
+            )
 
 
 @dataclass(frozen=True)
@@ -156,6 +191,12 @@ class Workspace:
             )
         if not self.contains([self.bin]).all():
             raise RobotConfigError(f"[workspace] bin {list(self.bin)} is outside the box")
+        for name in ("min", "max"):
+            if any(abs(x) > 1.5 for x in getattr(self, name)):
+                raise RobotConfigError(
+                    f"[workspace] {name} must lie within 1.5 m of the workspace frame (a UR5e "
+                    f"reaches 0.85 m), got {list(getattr(self, name))}"
+                )
 
     def bin_pose(self) -> npt.NDArray[np.float64]:
         """The TCP pose over the bin: at :attr:`bin`, pointing down."""
@@ -193,6 +234,16 @@ class Limits:
                 f"[limits] tool_speed {self.tool_speed} m/s is above 1 m/s; heapgrasp refuses "
                 "caps that high near a scene"
             )
+        _at_most(
+            "limits",
+            self,
+            {
+                "tool_acceleration": (15.0, "m/s²; a UR5e's tool tops out near 15"),
+                "tool_rotation_speed": (math.pi, "rad/s; a UR5e's joints turn at most π rad/s"),
+                "joint_speed": (math.pi, "rad/s; a UR5e's joints turn at most π rad/s"),
+                "joint_acceleration": (15.0, "rad/s²"),
+            },
+        )
 
 
 @dataclass(frozen=True)
@@ -212,12 +263,14 @@ class CameraSettings:
     def __post_init__(self) -> None:
         if (self.width, self.height) not in ((320, 240), (640, 480), (424, 240), (848, 480)):
             raise RobotConfigError(
-                f"[camera] {self.width}x{self.height} is not a colour mode heapgrasp supports "
+                f"[camera] width x height {self.width}x{self.height} is not a colour mode "
+                "heapgrasp supports "
                 "(320x240, 424x240, 640x480, 848x480)"
             )
         if self.fps not in (6, 15, 30, 60):
             raise RobotConfigError(f"[camera] fps must be 6, 15, 30 or 60, got {self.fps!r}")
         _check_positive("camera", self, ("timeout",))
+        _at_most("camera", self, {"timeout": (60.0, "s without a frame")})
 
 
 @dataclass(frozen=True)
@@ -243,9 +296,13 @@ class GripperSettings:
             raise RobotConfigError(f"[gripper] port must be in [1, 65535], got {self.port}")
         for name in ("speed", "force", "open_position", "closed_position"):
             v = getattr(self, name)
-            if v is not None and not 0 <= v <= 255:
-                raise RobotConfigError(f"[gripper] {name} must be in [0, 255], got {v}")
+            whole = isinstance(v, int) and not isinstance(v, bool)
+            if v is not None and not (whole and 0 <= v <= 255):
+                raise RobotConfigError(
+                    f"[gripper] {name} must be an integer in [0, 255], got {v!r}"
+                )
         _check_positive("gripper", self, ("timeout",))
+        _at_most("gripper", self, {"timeout": (60.0, "s to wait for a reply")})
 
 
 @dataclass(frozen=True)
