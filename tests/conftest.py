@@ -80,15 +80,18 @@ def box_scene():
     return scene, meshes
 
 
-def box_model(tmp: Path, extents: tuple[float, float, float] = (0.05, 0.05, 0.05)) -> ObjectModel:
-    """A user box of ``extents`` (m), its mesh written to ``tmp/box.obj``."""
+def box_model(
+    tmp: Path, extents: tuple[float, float, float] = (0.05, 0.05, 0.05), name: str = "box"
+) -> ObjectModel:
+    """A user box of ``extents`` (m) named ``test/NAME``, its mesh written to
+    ``tmp/NAME.obj``."""
     import trimesh
     from heapgrasp.sim.objects import ObjectModel
 
-    path = tmp / "box.obj"
+    path = tmp / f"{name}.obj"
     trimesh.creation.box(extents=extents).export(path)
     return ObjectModel(
-        name="test/box",
+        name=f"test/{name}",
         source="user",
         visual_mesh=path,
         collision_meshes=(path,),

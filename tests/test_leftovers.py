@@ -9,31 +9,17 @@ from typing import Any
 import numpy as np
 import pybullet as pb
 import pytest
-import trimesh
+from conftest import box_model
 from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
 from heapgrasp.loop.config import RunConfig
 from heapgrasp.loop.phase import build_pipeline
 from heapgrasp.loop.protocol import StopReason, run_clutter_removal
 from heapgrasp.loop.summary import leftover_summary
 from heapgrasp.sim.leftovers import describe_leftovers
-from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
+from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.optics import Category
 from heapgrasp.sim.truth import SimTruth
 from heapgrasp.sim.world import SimWorld
-
-
-def _box(tmp: Path, name: str, extents: tuple[float, float, float]) -> ObjectModel:
-    path = tmp / f"{name}.obj"
-    trimesh.creation.box(extents=extents).export(path)
-    return ObjectModel(
-        name=f"test/{name}",
-        source="user",
-        visual_mesh=path,
-        collision_meshes=(path,),
-        mass=0.1,
-        split="test",
-        extents=extents,
-    )
 
 
 def _at(x: float, y: float, z: float, tilt: float = 0.0) -> np.ndarray:
@@ -45,7 +31,7 @@ def _at(x: float, y: float, z: float, tilt: float = 0.0) -> np.ndarray:
 
 
 def test_settle_takes_out_what_left_the_workspace(tmp_path: Path) -> None:
-    small = _box(tmp_path, "small", (0.04, 0.04, 0.06))
+    small = box_model(tmp_path, (0.04, 0.04, 0.06), "small")
     with SimWorld(ObjectLibrary([small]), seed=0) as world:
         inside = world.spawn(small, _at(0.15, 0.15, 0.03), Category.OPAQUE)
         outside = world.spawn(small, _at(0.15, 0.15, 0.03), Category.SPECULAR)
@@ -60,9 +46,9 @@ def test_settle_takes_out_what_left_the_workspace(tmp_path: Path) -> None:
 
 
 def test_leftovers_are_described_and_tried_on_their_meshes(tmp_path: Path) -> None:
-    small = _box(tmp_path, "small", (0.04, 0.05, 0.06))
+    small = box_model(tmp_path, (0.04, 0.05, 0.06), "small")
     # wider than the Panda's 8 cm opening both ways, and lying flat: no grasp holds it
-    slab = _box(tmp_path, "slab", (0.12, 0.12, 0.02))
+    slab = box_model(tmp_path, (0.12, 0.12, 0.02), "slab")
     with SimWorld(ObjectLibrary([small, slab]), seed=0) as world:
         a = world.spawn(small, _at(0.08, 0.15, 0.03), Category.OPAQUE)
         b = world.spawn(slab, _at(0.20, 0.15, 0.01), Category.TRANSPARENT)
@@ -84,7 +70,7 @@ def test_leftovers_are_described_and_tried_on_their_meshes(tmp_path: Path) -> No
 
 
 def test_a_box_on_its_side_is_lying(tmp_path: Path) -> None:
-    tall = _box(tmp_path, "tall", (0.04, 0.04, 0.10))
+    tall = box_model(tmp_path, (0.04, 0.04, 0.10), "tall")
     with SimWorld(ObjectLibrary([tall]), seed=0) as world:
         world.spawn(tall, _at(0.15, 0.15, 0.02, tilt=np.pi / 2), Category.OPAQUE)
         world.settle()
