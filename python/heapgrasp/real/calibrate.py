@@ -46,6 +46,7 @@ from heapgrasp.robot.calibration import (
     calibration_poses,
     detect_board,
     render_board,
+    world_in_board,
 )
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.errors import DeviceError, RobotConfigError
@@ -95,14 +96,6 @@ def read_taught(path: str | Path) -> list[F64]:
             )
         out.append(pose_from_rtde(entry))
     return out
-
-
-def world_in_board(board: CharucoBoard) -> F64:
-    """``world2board``: the workspace frame in the board frame — turned face up (z out of
-    the table), origin at the board's bottom-left outer corner as printed."""
-    m = np.diag([1.0, -1.0, -1.0, 1.0])
-    m[1, 3] = board.squares_y * board.square
-    return m
 
 
 def _mat(v: F64) -> list[list[float]]:

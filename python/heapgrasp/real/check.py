@@ -40,7 +40,7 @@ def check(config_path: str | Path, *, drivers: Drivers | None = None) -> list[di
     loaded: dict[str, Any] = {}
 
     def settings() -> str:
-        _, cfg = load(config_path)
+        _, cfg = load(config_path, simulated=d.scene is not None)
         loaded["cfg"] = cfg
         return f"method {cfg.method}, view planner {cfg.view_planner}, grasps {cfg.grasp_planner}"
 
@@ -62,8 +62,12 @@ def check(config_path: str | Path, *, drivers: Drivers | None = None) -> list[di
         cfg = loaded.get("cfg")
         if cfg is None:
             raise ValueError("the settings did not load")
-        seg = make_segmenter(cfg)
-        return "none needed (depth baseline)" if seg is None else f"{cfg.seg_weights} opens"
+        seg = make_segmenter(cfg, d.scene)
+        if seg is None:
+            return "none needed (depth baseline)"
+        if cfg.segmenter != "network":
+            return "none needed (the rehearsal's exact silhouettes)"
+        return f"{cfg.seg_weights} opens"
 
     items.append(_item("segmentation network", network))
 
@@ -71,7 +75,7 @@ def check(config_path: str | Path, *, drivers: Drivers | None = None) -> list[di
         cfg = loaded.get("cfg")
         if cfg is None:
             raise ValueError("the settings did not load")
-        nets = open_networks(cfg)
+        nets = open_networks(cfg, d.hand, d.scene)
         view = "none (fixed views)" if nets.view_scorer is None else "view network opens"
         critic = "no critic" if nets.critic is None else "critic opens"
         return f"{type(nets.grasp_planner).__name__}; {view}; {critic}"
@@ -102,20 +106,25 @@ def check(config_path: str | Path, *, drivers: Drivers | None = None) -> list[di
     items.append(_item("camera", camera))
 
     def gripper() -> str:
-        robot.require_hosts(("gripper",))
+        if d.scene is None:
+            robot.require_hosts(("gripper",))
         g = d.gripper(robot)
         g.connect()
         try:
             status = g.status()
             active = "activated" if status.get("STA") == 3 else "not activated"
-            return f"{robot.gripper_host}:{robot.gripper.port} {active}, registers {status}"
+            where = (
+                "rehearsal" if d.scene is not None else f"{robot.gripper_host}:{robot.gripper.port}"
+            )
+            return f"{where} {active}, registers {status}"
         finally:
             g.disconnect()
 
     items.append(_item("gripper", gripper))
 
     def arm() -> str:
-        robot.require_hosts(("arm",))
+        if d.scene is None:
+            robot.require_hosts(("arm",))
         control, receive = d.arm(robot.arm.host, robot.arm.tcp)
         try:
             tcp = pose_from_rtde(receive.getActualTCPPose())
@@ -131,7 +140,8 @@ def check(config_path: str | Path, *, drivers: Drivers | None = None) -> list[di
                     f"TCP {np.round(world[:3, 3], 3).tolist()} m (workspace), "
                     f"{'inside' if inside else 'OUTSIDE'} the box"
                 )
-            return f"{robot.arm.host}: {modes}, {where}"
+            host = "rehearsal" if d.scene is not None else robot.arm.host
+            return f"{host}: {modes}, {where}"
         finally:
             control.disconnect()
             receive.disconnect()

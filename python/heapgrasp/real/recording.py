@@ -10,8 +10,10 @@ Each file holds one :meth:`~heapgrasp.robot.interfaces.Arm.look` frame or one
 :meth:`~heapgrasp.robot.interfaces.Arm.follow` capture: ``rgb`` ``(N, H, W, 3)``,
 ``depth`` ``(N, H, W)`` where the camera gave depth, ``poses`` ``(N, 4, 4)``
 (``cam2world``), ``times`` ``(N,)``, ``intrinsics`` (``CameraSpec`` fields) and the
-motion's ``duration``. Files are written to a temporary name and renamed, so a crash
-never leaves a torn file under a final name.
+motion's ``duration``; a rehearsal's (``robot run --sim``) also ``silhouettes``
+``(N, H, W)``, the simulator's exact masks, which a replay segments with. Files are
+written to a temporary name and renamed, so a crash never leaves a torn file under a
+final name.
 """
 
 from __future__ import annotations
@@ -30,12 +32,14 @@ import numpy.typing as npt
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.motion import TimedPath
 from heapgrasp.perception.frames import Capture, Frame
+from heapgrasp.perception.segmenters import MaskSource
 from heapgrasp.robot.errors import RobotConfigError
 from heapgrasp.robot.interfaces import Arm, Contact
 
 __all__ = [
     "ArmWrapper",
     "Recorded",
+    "RecordedSilhouettes",
     "RecordingArm",
     "load_phase",
     "phase_dirs",
@@ -45,8 +49,15 @@ __all__ = [
 F64 = npt.NDArray[np.float64]
 
 
-def save_frames(path: Path, frames: list[Frame], kind: str, duration: float) -> None:
-    """Writes ``frames`` (one look or one capture) to ``path`` atomically."""
+def save_frames(
+    path: Path,
+    frames: list[Frame],
+    kind: str,
+    duration: float,
+    silhouettes: list[npt.NDArray[np.bool_]] | None = None,
+) -> None:
+    """Writes ``frames`` (one look or one capture) to ``path`` atomically, with each
+    frame's exact silhouette where a rehearsal gives them."""
     path.parent.mkdir(parents=True, exist_ok=True)
     arrays: dict[str, Any] = {
         "kind": np.array(kind),
@@ -63,6 +74,8 @@ def save_frames(path: Path, frames: list[Frame], kind: str, duration: float) -> 
             arrays["rgb"] = np.stack([f.rgb for f in frames])  # type: ignore[misc]
         if all(f.depth is not None for f in frames):
             arrays["depth"] = np.stack([f.depth for f in frames])  # type: ignore[misc]
+        if silhouettes is not None:
+            arrays["silhouettes"] = np.stack(silhouettes).astype(bool)
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "wb") as fh:
         np.savez_compressed(fh, **arrays)
@@ -80,6 +93,8 @@ class Recorded:
     frames: list[Frame]
     duration: float
     path: Path
+    silhouettes: list[npt.NDArray[np.bool_]] | None = None
+    """Each frame's exact silhouette (a rehearsal's recording), or None."""
 
     def capture(self) -> Capture:
         """As the :class:`Capture` the arm returned."""
@@ -111,6 +126,7 @@ def _read(path: Path) -> Recorded:
             )
             rgb = z["rgb"] if "rgb" in z else None
             depth = z["depth"] if "depth" in z else None
+            masks = z["silhouettes"] if "silhouettes" in z else None
             for i in range(len(poses)):
                 frames.append(
                     Frame(
@@ -121,6 +137,11 @@ def _read(path: Path) -> Recorded:
                         None if depth is None else depth[i],
                     )
                 )
+            if masks is not None:
+                if masks.shape[0] != len(frames):
+                    raise ValueError(f"{masks.shape[0]} silhouettes for {len(frames)} frames")
+                silhouettes = [np.asarray(m, dtype=bool) for m in masks]
+                return Recorded(kind, frames, float(z["duration"]), path, silhouettes)
         return Recorded(kind, frames, float(z["duration"]), path)
 
 
@@ -144,6 +165,35 @@ def load_phase(phase_dir: Path) -> list[Recorded]:
                 "the phase cannot be replayed as it was taken"
             )
     return [_load(p) for p in files]
+
+
+class RecordedSilhouettes:
+    """The silhouettes a rehearsal recorded with its frames, by frame time (a
+    :class:`~heapgrasp.perception.segmenters.MaskSource` for the replay's segmenter)."""
+
+    def __init__(self, items: list[Recorded]) -> None:
+        self._masks: dict[float, npt.NDArray[np.bool_]] = {}
+        self.replace(items)
+
+    def replace(self, items: list[Recorded]) -> None:
+        """Holds the silhouettes of ``items`` (one phase's) instead."""
+        self._masks = {}
+        for item in items:
+            if item.silhouettes is None:
+                continue
+            for frame, mask in zip(item.frames, item.silhouettes, strict=True):
+                self._masks[frame.time] = mask
+
+    def __bool__(self) -> bool:
+        return bool(self._masks)
+
+    def silhouette(self, frame: Frame) -> npt.NDArray[np.bool_]:
+        try:
+            return self._masks[frame.time]
+        except KeyError:
+            raise RobotConfigError(
+                f"no recorded silhouette for the frame at {frame.time:.4f} s"
+            ) from None
 
 
 class ArmWrapper:
@@ -189,15 +239,28 @@ class ArmWrapper:
 
 class RecordingArm(ArmWrapper):
     """An arm that saves every frame it returns (:func:`save_frames`) under
-    ``frames_dir/scene_SSS/phase_PPP/``; call :meth:`begin_phase` before each phase."""
+    ``frames_dir/scene_SSS/phase_PPP/``; call :meth:`begin_phase` before each phase.
+    ``silhouettes``: a rehearsal's exact masks, saved with each frame."""
 
-    def __init__(self, arm: Arm | ArmWrapper, frames_dir: Path, scene: int) -> None:
+    def __init__(
+        self,
+        arm: Arm | ArmWrapper,
+        frames_dir: Path,
+        scene: int,
+        silhouettes: MaskSource | None = None,
+    ) -> None:
         super().__init__(arm)
+        self.silhouettes = silhouettes
         self.frames_dir = frames_dir
         self.scene = scene
         self.phase = -1
         self._count = 0
         self.saved: list[Path] = []
+
+    def _masks(self, frames: list[Frame]) -> list[npt.NDArray[np.bool_]] | None:
+        if self.silhouettes is None or not frames:
+            return None
+        return [self.silhouettes.silhouette(f) for f in frames]
 
     def begin_phase(self) -> None:
         """The next frames belong to a new phase."""
@@ -213,14 +276,14 @@ class RecordingArm(ArmWrapper):
     def look(self, cam2world: F64) -> Frame:
         frame = super().look(cam2world)
         path = self._path("look")
-        save_frames(path, [frame], "look", 0.0)
+        save_frames(path, [frame], "look", 0.0, self._masks([frame]))
         self.saved.append(path)
         return frame
 
     def follow(self, path: TimedPath) -> Capture:
         cap = super().follow(path)
         out = self._path("follow")
-        save_frames(out, cap.frames, "follow", cap.duration)
+        save_frames(out, cap.frames, "follow", cap.duration, self._masks(cap.frames))
         self.saved.append(out)
         return cap
 

@@ -12,13 +12,19 @@ The result says, per phase, which grasp the changed settings pick and how far it
 from the grasp the robot executed (and how that ended). Views the new settings would
 have taken elsewhere cannot be seen; where they differ, the replay is only as good as
 the recorded frames, and ``view_offsets_m`` says by how much.
+
+A rehearsal's recording (``robot run --sim --execute``) holds each frame's exact
+silhouette: where the run's (changed) settings segment with the simulator's
+silhouettes (``segmenter = "truth"``), the replay segments with the recorded ones; the
+planners plan for the hand the run used (``robot.json``'s ``hand``).
 """
 
 from __future__ import annotations
 
+import json
 import time
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,12 +33,14 @@ import numpy as np
 import numpy.typing as npt
 
 from heapgrasp.geometry.camera import CameraSpec
-from heapgrasp.geometry.gripper import ROBOTIQ_2F140, GripperGeometry
+from heapgrasp.geometry.gripper import ROBOTIQ_2F140, GripperGeometry, gripper_named
 from heapgrasp.geometry.motion import TimedPath
+from heapgrasp.loop.config import RunConfig
 from heapgrasp.loop.records import RunDir, write_json
 from heapgrasp.perception.frames import Capture, Frame
-from heapgrasp.real.recording import Recorded, load_phase, phase_dirs
-from heapgrasp.real.setup import real_pipeline
+from heapgrasp.perception.segmenters import Segmenter
+from heapgrasp.real.recording import Recorded, RecordedSilhouettes, load_phase, phase_dirs
+from heapgrasp.real.setup import make_segmenter, real_pipeline
 from heapgrasp.robot.errors import RobotConfigError
 from heapgrasp.robot.grasping import Grasp
 from heapgrasp.robot.interfaces import Contact, UnreachableError
@@ -133,15 +141,38 @@ def _distance(a: Any, b: Any) -> float | None:
     return float(np.linalg.norm(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)))
 
 
+def _hand(run_dir: Path) -> GripperGeometry:
+    """The hand the run planned for (``robot.json``'s ``hand``; a run recorded before
+    it was written used the Robotiq 2F-140)."""
+    try:
+        name = json.loads((run_dir / "robot.json").read_text()).get("hand")
+    except (OSError, ValueError, AttributeError):
+        name = None
+    if not isinstance(name, str):
+        return ROBOTIQ_2F140
+    try:
+        return gripper_named(name)
+    except ValueError as exc:
+        raise RobotConfigError(f"{run_dir / 'robot.json'}: {exc}") from None
+
+
+def _needs_silhouettes(config: RunConfig) -> bool:
+    """Whether ``config`` segments with the simulator's silhouettes (a rehearsal's)."""
+    return config.method != "vgn" and config.segmenter != "network"
+
+
 def replay(
     run_dir: str | Path,
     changes: Mapping[str, Any] | None = None,
     *,
     out: str | Path | None = None,
+    observer: Any = None,
+    scenes: Sequence[int] | None = None,
 ) -> dict[str, Any]:
     """Replays every recorded phase of ``run_dir`` with the run's settings changed by
     ``changes``; writes the result to ``out`` (default ``RUN_DIR/replay.json``) and
-    returns it."""
+    returns it. ``observer``: a phase observer (``heapgrasp show`` passes its Rerun
+    recorder); ``scenes``: only these runs of the directory (default all)."""
     rundir = RunDir(run_dir)
     saved = rundir.read_config()
     if saved is None:
@@ -155,6 +186,9 @@ def replay(
         )
     config = saved.replace(dict(changes or {}), source="--set")
     records = rundir.records()
+    if scenes is not None:
+        records = [r for r in records if int(r["scene"]) in set(scenes)]
+    hand = _hand(rundir.path)
     frames_dir = rundir.path / "frames"
     rows: list[dict[str, Any]] = []
     t0 = time.perf_counter()
@@ -168,8 +202,19 @@ def replay(
                 f"the frames of {len(dirs)} there: replay needs every phase's frames"
             )
         pipeline = None
+        silhouettes = RecordedSilhouettes([])
+        segmenter: Segmenter | None = None
+        if _needs_silhouettes(config):
+            segmenter = make_segmenter(config, silhouettes)
         for k, phase_dir in enumerate(dirs):
             items = load_phase(phase_dir)
+            silhouettes.replace(items)
+            if segmenter is not None and items and not silhouettes:
+                raise RobotConfigError(
+                    f"{phase_dir}: segmenter = {config.segmenter!r} needs the simulator's "
+                    "silhouettes, which only a rehearsal (`robot run --sim`) records; replay "
+                    "a real run with --set segmenter=network --set seg_weights=FILE"
+                )
             if not items or not items[0].frames:
                 continue
             seen = recorded[k].get("frames") if k < len(recorded) else None
@@ -181,8 +226,13 @@ def replay(
                 )
             arm = ReplayArm(items)
             if pipeline is None:
-                pipeline = real_pipeline(config, _Robot(arm, _Gripper()))
-            pipeline.robot = _Robot(arm, _Gripper())
+                pipeline = real_pipeline(
+                    config,
+                    _Robot(arm, _Gripper(hand)),
+                    segmenter=segmenter,
+                    observer=observer,
+                )
+            pipeline.robot = _Robot(arm, _Gripper(hand))
             plan = pipeline.plan()
             before = recorded[k] if k < len(recorded) else {}
             new = None if plan.grasp is None else plan.grasp.pose[:3, 3].tolist()

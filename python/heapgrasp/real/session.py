@@ -6,7 +6,9 @@ loop plans its first phase as it would (HEAPGrasp §IV: the grid, the view waypo
 eq. 18, the grasp of eq. 16) and every motion it asks for is *checked* instead of sent:
 the start pose, each timed camera path (the workspace box, the speed caps, the joint
 speeds from the controller's inverse kinematics) and the grasp's pre-grasp and grasp
-poses. It writes ``dry_run.json`` (each check, the waypoints, the grasp), the frames, and
+poses. A refused camera path is a view the loop would skip (``skipped_views``); any
+other refusal (``refused``) would stop the run. It writes ``dry_run.json`` (each check,
+the waypoints, the grasp), the frames, and
 a Rerun recording of the phase (grid, views, grasp) where ``rerun-sdk`` is installed.
 
 **Executed run** (:func:`execute`, ``--execute``): the clutter-removal protocol of §VI-C
@@ -17,6 +19,12 @@ and synced), ``results.json`` — plus ``robot.json`` (the robot config) and eve
 (:mod:`heapgrasp.real.recording`). A device error, a protective stop or Ctrl-C stops
 the arm; the record of that run keeps the error and every phase planned so far, and the
 frames stay on disk. ``--resume`` appends the next run to the same directory.
+
+**Rehearsal** (``--sim``): the same two functions with the simulator's drivers
+(:class:`~heapgrasp.robot.hardware.Drivers` with a ``scene``, :mod:`heapgrasp.rehearsal`):
+the planners plan for the drivers' hand, the frames are recorded with their exact
+silhouettes, and an executed run's record gains ``rehearsal``, what the simulator saw
+become of the objects.
 """
 
 from __future__ import annotations
@@ -42,7 +50,7 @@ from heapgrasp.real.setup import load, open_networks, real_pipeline
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.errors import RobotConfigError, RobotError
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE, translate
-from heapgrasp.robot.hardware import Drivers, HardwareRobot
+from heapgrasp.robot.hardware import Drivers, HardwareRobot, hand_name
 from heapgrasp.robot.interfaces import Contact, UnreachableError
 from heapgrasp.robot.ur import URArm, continuous_roll
 
@@ -144,15 +152,16 @@ def dry_run(
 ) -> dict[str, Any]:
     """Plans one phase on the robot without moving it (see the module docstring) and
     returns what ``dry_run.json`` holds."""
-    robot_cfg, cfg = load(config_path)
-    networks = open_networks(cfg)  # every file checked before a device is touched
+    d = drivers or Drivers()
+    robot_cfg, cfg = load(config_path, simulated=d.scene is not None)
+    networks = open_networks(cfg, d.hand, d.scene)  # every file checked before a device
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     recorder = _viz(out, cfg) if viz else None
     t0 = time.perf_counter()
-    with HardwareRobot.connect(robot_cfg, drivers, activate=False) as hw:
+    with HardwareRobot.connect(robot_cfg, d, activate=False) as hw:
         dry = DryRunArm(hw.arm)
-        rec = RecordingArm(dry, out / "frames", 0)
+        rec = RecordingArm(dry, out / "frames", 0, d.scene)
         robot = _Robot(rec, hw.gripper)
         pipeline = real_pipeline(cfg, robot, networks=networks, observer=recorder)
         rec.begin_phase()
@@ -178,10 +187,13 @@ def dry_run(
         "moved": sent > 0,
         "motion_commands_sent": sent,
         "config": str(config_path),
+        "rehearsal": d.scene is not None,
         "method": cfg.method,
         "grasp": grasp,
         "checks": dry.checks,
-        "refused": [c for c in dry.checks if not c["ok"]],
+        # a refused camera path is a view the loop skips; any other refusal stops a run
+        "refused": [c for c in dry.checks if not c["ok"] and c["motion"] != "path"],
+        "skipped_views": [c for c in dry.checks if not c["ok"] and c["motion"] == "path"],
         "frames": len(rec.saved),
         "stopped": stopped,
         "waypoints": [] if plan is None else plan.extra.get("waypoints", []),
@@ -200,9 +212,13 @@ def _plain(data: Any) -> Any:
     return json.loads(json.dumps(data, default=lambda o: np.asarray(o).tolist()))
 
 
-def robot_record(robot: RobotConfig) -> dict[str, Any]:
-    """The robot config as plain data (``robot.json``)."""
+def robot_record(robot: RobotConfig, drivers: Drivers | None = None) -> dict[str, Any]:
+    """The robot config as plain data (``robot.json``), with the hand the planners
+    planned for and whether the devices were a rehearsal's."""
+    d = drivers or Drivers()
     data = dataclasses.asdict(robot)
+    data["hand"] = hand_name(d.hand)
+    data["rehearsal"] = d.scene is not None
     return _plain(data)  # type: ignore[no-any-return]
 
 
@@ -237,8 +253,9 @@ def execute(
     writing the record."""
     if objects < 1:
         raise RobotConfigError(f"--objects must be at least 1, got {objects}")
-    robot_cfg, cfg = load(config_path)
-    networks = open_networks(cfg)  # every file checked before a device is touched
+    d = drivers or Drivers()
+    robot_cfg, cfg = load(config_path, simulated=d.scene is not None)
+    networks = open_networks(cfg, d.hand, d.scene)  # every file checked before a device
     rundir = RunDir(out)
     rundir.path.mkdir(parents=True, exist_ok=True)
     with rundir:
@@ -254,7 +271,7 @@ def execute(
                 f"--resume: the settings differ from {rundir.config_file} ({saved.changes_to(cfg)})"
             )
         rundir.write_config(cfg)
-        write_json(rundir.path / ROBOT_FILE, robot_record(robot_cfg))
+        write_json(rundir.path / ROBOT_FILE, robot_record(robot_cfg, d))
         scene = len(records)
         planned = _Planned()
         t0 = time.perf_counter()
@@ -268,8 +285,8 @@ def execute(
         }
         failure: BaseException | None = None
         try:
-            with HardwareRobot.connect(robot_cfg, drivers) as hw:
-                rec = RecordingArm(hw.arm, rundir.path / "frames", scene)
+            with HardwareRobot.connect(robot_cfg, d) as hw:
+                rec = RecordingArm(hw.arm, rundir.path / "frames", scene, d.scene)
                 robot = _Robot(rec, hw.gripper)
                 pipeline = real_pipeline(cfg, robot, networks=networks)
 
@@ -300,6 +317,8 @@ def execute(
             failure = exc
             record["error"] = f"{type(exc).__name__}: {exc}"
             record["phases_planned"] = planned.phases
+        if d.scene is not None:
+            record["rehearsal"] = d.scene.report()
         record["wall_time_s"] = time.perf_counter() - t0
         record["frames_dir"] = f"frames/scene_{scene:03d}"
         rundir.append(_plain(record))

@@ -9,6 +9,10 @@ the camera's frame rate, then checked against what a real robot has:
 * the ``vgn`` baseline needs ``[camera] depth = true``;
 * the camera paths' speed and acceleration (``max_velocity``, ``max_acceleration``) may
   not exceed ``[limits]`` (the arm would refuse every path).
+
+A rehearsal (``simulated=True``, :mod:`heapgrasp.rehearsal`) has the simulator's scene
+truth: without ``[networks] segmentation`` its frames are segmented by their exact
+silhouettes (``segmenter = "truth"``, with ``noise`` where set), as ``heapgrasp run``'s.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ from heapgrasp.loop.phase import (
     make_view_scorer,
 )
 from heapgrasp.loop.phase import make_segmenter as loop_segmenter
-from heapgrasp.perception.segmenters import Segmenter
+from heapgrasp.perception.segmenters import MaskSource, Segmenter
 from heapgrasp.planning.critic import GraspCritic
 from heapgrasp.planning.views import ViewScorer
 from heapgrasp.planning.volumes import GraspPlanner
@@ -38,9 +42,10 @@ from heapgrasp.robot.interfaces import Robot
 __all__ = ["Networks", "load", "make_segmenter", "open_networks", "real_pipeline", "run_config"]
 
 
-def run_config(robot: RobotConfig) -> RunConfig:
-    """The loop's settings for ``robot`` (see the module docstring); every problem is a
-    :class:`RobotConfigError` naming the file and the key."""
+def run_config(robot: RobotConfig, *, simulated: bool = False) -> RunConfig:
+    """The loop's settings for ``robot`` (see the module docstring; ``simulated``: a
+    rehearsal's); every problem is a :class:`RobotConfigError` naming the file and the
+    key."""
     src = robot.source
     base = Path(src).parent if src.endswith(".toml") else Path.cwd()
     changes: dict[str, Any] = dict(robot.method)
@@ -73,7 +78,7 @@ def run_config(robot: RobotConfig) -> RunConfig:
             raise RobotConfigError(
                 f"{src}: the vgn baseline needs depth: set [camera] depth = true"
             )
-    elif cfg.segmenter != "network":
+    elif cfg.segmenter != "network" and not simulated:
         raise RobotConfigError(
             f"{src}: a real camera's frames are segmented by the network: set [networks] "
             "segmentation to the ONNX file `heapgrasp seg train` wrote"
@@ -89,15 +94,16 @@ def run_config(robot: RobotConfig) -> RunConfig:
             f"{src}: [method] max_acceleration {cfg.max_acceleration} m/s² is above [limits] "
             f"tool_acceleration {lim.tool_acceleration}"
         )
-    if cfg.mount != "free" or cfg.noise > 0:
+    if cfg.mount != "free" or (cfg.noise > 0 and not simulated):
         raise RobotConfigError(
             f"{src}: [method] mount and noise are the simulator's settings; leave them out"
         )
     return cfg
 
 
-def load(path: str | Path) -> tuple[RobotConfig, RunConfig]:
-    """Reads ``robot.toml`` and derives the loop's settings; both checked whole."""
+def load(path: str | Path, *, simulated: bool = False) -> tuple[RobotConfig, RunConfig]:
+    """Reads ``robot.toml`` and derives the loop's settings; both checked whole
+    (``simulated``: for a rehearsal, :func:`run_config`)."""
     robot = RobotConfig.load(path)
     used = robot.calibration.report.get("tcp")
     if used is not None and list(used) != list(robot.arm.tcp):
@@ -105,15 +111,16 @@ def load(path: str | Path) -> tuple[RobotConfig, RunConfig]:
             f"{robot.source}: [calibration] was measured with the TCP {list(used)}, but [arm] "
             f"tcp is {list(robot.arm.tcp)}: calibrate again (heapgrasp robot calibrate)"
         )
-    return robot, run_config(robot)
+    return robot, run_config(robot, simulated=simulated)
 
 
-def make_segmenter(config: RunConfig) -> Segmenter | None:
-    """The segmentation network of ``config`` (None for the depth baseline)."""
+def make_segmenter(config: RunConfig, truth: MaskSource | None = None) -> Segmenter | None:
+    """The segmentation network of ``config`` (None for the depth baseline); with a
+    rehearsal's ``truth``, the simulator's segmenters too."""
     if config.method == "vgn":
         return None
     try:
-        return loop_segmenter(config, None)
+        return loop_segmenter(config, truth)
     except ConfigError as exc:
         raise RobotConfigError(f"[networks] segmentation: {exc}") from None
 
@@ -137,11 +144,16 @@ class Networks:
     critic: GraspCritic | None
 
 
-def open_networks(config: RunConfig, gripper: GripperGeometry = ROBOTIQ_2F140) -> Networks:
+def open_networks(
+    config: RunConfig,
+    gripper: GripperGeometry = ROBOTIQ_2F140,
+    truth: MaskSource | None = None,
+) -> Networks:
     """Opens the segmentation, grasp, view and critic files of ``config`` for a robot with
     ``gripper``, before any device is touched: a bad file is a
-    :class:`~heapgrasp.robot.errors.RobotConfigError` naming it, with nothing activated."""
-    segmenter = make_segmenter(config)
+    :class:`~heapgrasp.robot.errors.RobotConfigError` naming it, with nothing activated.
+    ``truth``: a rehearsal's silhouettes (:func:`make_segmenter`)."""
+    segmenter = make_segmenter(config, truth)
     try:
         return Networks(
             segmenter,

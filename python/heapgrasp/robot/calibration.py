@@ -50,7 +50,9 @@ __all__ = [
     "calibration_poses",
     "detect_board",
     "render_board",
+    "require_opencv",
     "solve_hand_eye",
+    "world_in_board",
 ]
 
 F64 = npt.NDArray[np.float64]
@@ -81,6 +83,12 @@ _INSTALL = (
     "pip install 'heapgrasp[robot]' (opencv-python-headless>=4.8,<5; "
     "OpenCV 5.0 lacks calibrateHandEye, 4.x is needed)"
 )
+
+
+def require_opencv() -> None:
+    """Raises the ImportError naming the extra to install where OpenCV 4.x (>= 4.7) is
+    missing: for a command to say so before it starts anything."""
+    _cv2()
 
 
 def _cv2() -> Any:
@@ -396,6 +404,14 @@ def detect_board(
 
 
 # --------------------------------------------------------------------------- rendering
+
+
+def world_in_board(board: CharucoBoard) -> F64:
+    """``world2board``: the workspace frame in the board frame — turned face up (z out of
+    the table), origin at the board's bottom-left outer corner as printed."""
+    m = np.diag([1.0, -1.0, -1.0, 1.0])
+    m[1, 3] = board.squares_y * board.square
+    return m
 
 
 def render_board(

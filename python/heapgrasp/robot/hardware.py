@@ -8,6 +8,11 @@ factories the tests replace with fakes.
 
 ``activate=False`` (the dry run) connects the gripper without activating it: activation
 moves the fingers through their whole stroke, and a dry run moves nothing.
+
+A rehearsal (``heapgrasp robot ... --sim``, :mod:`heapgrasp.rehearsal`) passes drivers
+whose devices are the simulator's: :attr:`Drivers.scene` then says what only a simulator
+knows (each frame's exact silhouette, what happened to the objects), and no host is
+needed.
 """
 
 from __future__ import annotations
@@ -16,14 +21,16 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
+from heapgrasp.geometry.gripper import GRIPPERS, ROBOTIQ_2F140, GripperGeometry
+from heapgrasp.perception.segmenters import MaskSource
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.realsense import RealSenseCamera, RealSenseSettings
 from heapgrasp.robot.robotiq import Robotiq2F140, WidthCalibration
 from heapgrasp.robot.ur import URArm, connect_ur
 
-__all__ = ["Drivers", "HardwareRobot", "camera_settings"]
+__all__ = ["Drivers", "HardwareRobot", "SimulatedScene", "camera_settings", "hand_name"]
 
 
 def _camera(settings: RealSenseSettings) -> Any:
@@ -45,6 +52,17 @@ def _gripper(config: RobotConfig) -> Any:
     )
 
 
+@runtime_checkable
+class SimulatedScene(MaskSource, Protocol):
+    """What a rehearsal's drivers know and hardware cannot: the exact silhouette of every
+    frame their camera delivered (:meth:`silhouette`, read by the simulator's segmenters
+    and recorded with the frames), and what became of the objects (:meth:`report`)."""
+
+    def report(self) -> dict[str, Any]:
+        """The scene's truth now: objects placed, removed, left (plain data)."""
+        ...
+
+
 @dataclass
 class Drivers:
     """How each device is opened (the tests pass fakes)."""
@@ -57,6 +75,16 @@ class Drivers:
     """The config → an unconnected gripper (``connect``/``activate``/...)."""
     clock: Callable[[], float] = time.time
     sleep: Callable[[float], None] = time.sleep
+    hand: GripperGeometry = ROBOTIQ_2F140
+    """The shape of the gripper these drivers open (what the planners plan for)."""
+    scene: SimulatedScene | None = None
+    """A rehearsal's scene truth; None on hardware."""
+
+
+def hand_name(hand: GripperGeometry) -> str:
+    """The name of ``hand`` in :data:`~heapgrasp.geometry.gripper.GRIPPERS` (``custom``
+    where it is none of them)."""
+    return next((name for name, g in GRIPPERS.items() if g == hand), "custom")
 
 
 def camera_settings(config: RobotConfig) -> RealSenseSettings:
@@ -90,8 +118,9 @@ class HardwareRobot:
     ) -> HardwareRobot:
         """Opens the camera, the gripper (activated unless ``activate`` is False) and the
         arm; whatever was opened is closed again if a later device fails."""
-        config.require_hosts()  # before any device is touched
         d = drivers or Drivers()
+        if d.scene is None:
+            config.require_hosts()  # before any device is touched
         opened: list[Callable[[], None]] = []
         try:
             camera = d.camera(camera_settings(config))

@@ -206,6 +206,15 @@ class PandaHand(Fingers):
         pts = pb.getContactPoints(bodyA=self.body, physicsClientId=self.client)
         return {"palm" if p[3] == -1 else "finger" for p in pts if p[2] != self.body}
 
+    def servo(self, tcp: FloatArray) -> None:
+        """Sets the hand's target pose to ``tcp`` without stepping: the fixed constraint
+        pulls the hand there over the next physics steps (a streamed motion's setpoint)."""
+        pos, quat = self._body_pose(np.asarray(tcp, dtype=np.float64))
+        pb.changeConstraint(
+            self.constraint, pos, quat, maxForce=self.max_force, physicsClientId=self.client
+        )
+        self.tcp = np.array(tcp, dtype=np.float64)
+
     def move_linear(
         self, target: FloatArray, *, speed: float = 0.1, abort_on_contact: bool = False
     ) -> bool:
