@@ -1,7 +1,9 @@
 """``heapgrasp robot init|check|board|calibrate|run`` and ``heapgrasp replay``: the real robot.
 
 Nothing moves without ``--execute``: ``run`` and ``calibrate`` default to a dry run that
-checks every motion and sends none (``docs/real_robot.md``).
+checks every motion and sends none (``docs/real_robot.md``). ``--sim`` rehearses
+``check``, ``calibrate`` and ``run`` against the simulator behind the same drivers
+(:mod:`heapgrasp.rehearsal`): nothing is contacted, no host need be set.
 """
 
 from __future__ import annotations
@@ -74,13 +76,54 @@ def _robot_error(exc: Exception) -> int:
     return 2 if isinstance(exc, RobotConfigError | ValueError) else 1
 
 
+#: Objects a rehearsal places where ``--objects`` is not given.
+REHEARSAL_OBJECTS = 5
+
+
+def _rehearsal(args: argparse.Namespace, *, board: bool = False) -> Any:
+    """The simulator's rig for ``--sim`` (:class:`heapgrasp.rehearsal.Rehearsal`), or None
+    without it. Raises what reading ``robot.toml`` raises."""
+    if not getattr(args, "sim", False):
+        return None
+    from heapgrasp.real.setup import load
+    from heapgrasp.rehearsal import Rehearsal
+
+    if board:
+        from heapgrasp.robot.calibration import require_opencv
+
+        require_opencv()  # before the simulator is built: one line naming the extra
+    robot, cfg = load(args.config, simulated=True)
+    objects = getattr(args, "objects", None) or REHEARSAL_OBJECTS
+    seed = getattr(args, "seed", 0)
+    rig = Rehearsal(robot, cfg, seed=seed, objects=objects, board=board)
+    what = (
+        "the ChArUco board on the table"
+        if board
+        else f"{len(rig.placed)} objects (seed {seed}"
+        + (
+            f"; {objects - len(rig.placed)} fell off the table)"
+            if len(rig.placed) < objects
+            else ")"
+        )
+    )
+    print(
+        f"rehearsal: a simulated UR5e, RealSense and gripper (the simulator's hand) with {what}; "
+        "no device is contacted",
+        file=sys.stderr,
+    )
+    return rig
+
+
 def _init(args: argparse.Namespace) -> int:
     path = Path(args.path)
     if path.exists() and not args.force:
         print(f"heapgrasp: error: {path} exists (pass --force to overwrite)", file=sys.stderr)
         return 2
     path.write_text(ROBOT_TOML)
-    print(f"wrote {path}: set [arm] host, then `heapgrasp robot check --config {path}`")
+    print(
+        f"wrote {path}: set [arm] host, then `heapgrasp robot check --config {path}`; "
+        f"or rehearse first, without a robot: `heapgrasp robot check --config {path} --sim`"
+    )
     return 0
 
 
@@ -89,7 +132,12 @@ def _check(args: argparse.Namespace) -> int:
     from heapgrasp.robot.errors import RobotError
 
     try:
-        items = check(args.config)
+        rig = _rehearsal(args)
+        try:
+            items = check(args.config, drivers=None if rig is None else rig.drivers())
+        finally:
+            if rig is not None:
+                rig.close()
     except RobotError as exc:
         return _robot_error(exc)
     width = max(len(i["item"]) for i in items)
@@ -105,23 +153,36 @@ def _run(args: argparse.Namespace) -> int:
     from heapgrasp.real import session
     from heapgrasp.robot.errors import RobotError
 
+    if args.objects is not None and args.objects < 1:
+        print(
+            f"heapgrasp: error: --objects must be at least 1, got {args.objects}", file=sys.stderr
+        )
+        return 2
+    rig = None
     try:
+        rig = _rehearsal(args)
+        drivers = None if rig is None else rig.drivers()
         if not args.execute:
-            result = session.dry_run(args.config, args.out, viz=not args.no_viz)
+            result = session.dry_run(args.config, args.out, drivers=drivers, viz=not args.no_viz)
             _print_dry_run(result, Path(args.out))
             return 0 if not result["refused"] else 1
-        if args.objects is None:
+        if rig is not None:
+            args.objects = len(rig.placed)
+        elif args.objects is None:
             print(
                 "heapgrasp: error: --execute needs --objects N (how many objects you placed)",
                 file=sys.stderr,
             )
             return 2
-        print(
-            f"heapgrasp: executing on the robot ({args.config}); the arm will move. "
-            "Keep the emergency stop at hand.",
-            file=sys.stderr,
+        if rig is None:
+            print(
+                f"heapgrasp: executing on the robot ({args.config}); the arm will move. "
+                "Keep the emergency stop at hand.",
+                file=sys.stderr,
+            )
+        record = session.execute(
+            args.config, args.out, objects=args.objects, resume=args.resume, drivers=drivers
         )
-        record = session.execute(args.config, args.out, objects=args.objects, resume=args.resume)
     except RobotError as exc:
         out = Path(args.out)
         if out.is_dir() and any(out.iterdir()):
@@ -129,19 +190,29 @@ def _run(args: argparse.Namespace) -> int:
         else:
             print(f"heapgrasp: nothing was written to {out}", file=sys.stderr)
         return _robot_error(exc)
+    finally:
+        if rig is not None:
+            rig.close()
     phases = record.get("phases", [])
     ok = sum(1 for p in phases if p.get("outcome") == "success")
     print(
         f"run {record['scene']}: {ok} of {len(phases)} grasps succeeded, stopped: "
         f"{record.get('stop_reason')}; results in {Path(args.out) / 'results.json'}"
     )
+    truth = record.get("rehearsal")
+    if truth:
+        print(
+            f"the simulator: {truth['objects_removed']} of {truth['objects_placed']} objects "
+            f"in the bin, {truth['objects_left']} left; try `heapgrasp replay {args.out}` and "
+            f"`heapgrasp show {args.out}`"
+        )
     return 0
 
 
 def _print_dry_run(result: dict[str, Any], out: Path) -> None:
     print(f"dry run: {result['motion_commands_sent']} motion commands sent (none expected)")
     for c in result["checks"]:
-        mark = "ok     " if c["ok"] else "REFUSED"
+        mark = "ok     " if c["ok"] else "SKIPPED" if c["motion"] == "path" else "REFUSED"
         where = c.get("end") or c.get("position")
         at = "" if where is None else f" -> {[round(x, 3) for x in where]}"
         print(f"  {mark} {c['motion']:<8}{at} {c['detail']}")
@@ -153,6 +224,13 @@ def _print_dry_run(result: dict[str, Any], out: Path) -> None:
     else:
         pos = [round(r[3], 3) for r in g["pose"][:3]]
         print(f"  grasp at {pos} m, width {g['width']:.3f} m")
+    if result.get("skipped_views"):
+        print(
+            f"  {len(result['skipped_views'])} view path(s) SKIPPED: the loop plans without "
+            "them (too many, and move the arm's base or widen [workspace])"
+        )
+    if result["refused"]:
+        print(f"  {len(result['refused'])} motion(s) REFUSED: a run would stop there")
     print(f"wrote {out / 'dry_run.json'}" + (f" and {result['rerun']}" if result["rerun"] else ""))
     if result["rerun"]:
         print(f"view it: rerun {result['rerun']}")
@@ -175,14 +253,20 @@ def _calibrate(args: argparse.Namespace) -> int:
             print("heapgrasp: error: --config is required (or --synthetic)", file=sys.stderr)
             return 2
         taught = read_taught(args.taught) if args.taught else None
-        report = calibrate_robot(
-            args.config,
-            args.out,
-            poses=args.poses,
-            execute=args.execute,
-            seed=args.seed,
-            taught=taught,
-        )
+        rig = _rehearsal(args, board=True)
+        try:
+            report = calibrate_robot(
+                args.config,
+                args.out,
+                poses=args.poses,
+                execute=args.execute,
+                seed=args.seed,
+                taught=taught,
+                drivers=None if rig is None else rig.drivers(),
+            )
+        finally:
+            if rig is not None:
+                rig.close()
     except (RobotError, ValueError) as exc:
         return _robot_error(exc)
     bad = [c for c in report["checks"] if not c["ok"]]
@@ -285,6 +369,16 @@ def _replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def _sim_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--sim",
+        action="store_true",
+        help="rehearse without hardware: the simulator stands in for the arm, the camera "
+        "and the gripper behind the same drivers (docs/real_robot.md, 'Rehearse without a "
+        "robot'); no host needed, nothing is contacted",
+    )
+
+
 def add_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
 ) -> argparse.ArgumentParser:
@@ -294,7 +388,8 @@ def add_parser(
         help="the real robot: UR e-Series + RealSense + Robotiq 2F-140 (no ROS)",
         description="HEAPGrasp on a real arm (docs/real_robot.md). Start with `robot init`, "
         "then `robot check`, `robot board` and `robot calibrate`, a dry `robot run`, and "
-        "`robot run --execute`.",
+        "`robot run --execute`. Add --sim to check, calibrate and run to rehearse all of it "
+        "against the simulator first.",
     )
     sub = p.add_subparsers(dest="robot_command", metavar="COMMAND", required=True)
 
@@ -313,6 +408,7 @@ def add_parser(
     )
     chk.add_argument("--config", required=True, help="robot.toml")
     chk.add_argument("--json", metavar="FILE", help="also write the report as JSON")
+    _sim_arguments(chk)
     chk.set_defaults(func=_check)
 
     run = sub.add_parser(
@@ -329,9 +425,16 @@ def add_parser(
     run.add_argument("--config", required=True, help="robot.toml")
     run.add_argument("--out", default="robot-run", help="output directory (default robot-run)")
     run.add_argument("--execute", action="store_true", help="move the robot (default: dry run)")
-    run.add_argument("--objects", type=int, help="with --execute: how many objects you placed")
+    run.add_argument(
+        "--objects",
+        type=int,
+        help="with --execute: how many objects you placed (with --sim: how many the "
+        f"simulator places, default {REHEARSAL_OBJECTS})",
+    )
     run.add_argument("--resume", action="store_true", help="add this run to OUT's runs")
     run.add_argument("--no-viz", action="store_true", help="dry run: no Rerun recording")
+    _sim_arguments(run)
+    run.add_argument("--seed", type=int, default=0, help="with --sim: the scene's seed (default 0)")
     run.set_defaults(func=_run)
 
     cal = sub.add_parser(
@@ -349,6 +452,7 @@ def add_parser(
     cal.add_argument("--poses", type=int, default=15, help="arm poses (default 15)")
     cal.add_argument("--execute", action="store_true", help="move the arm and calibrate")
     cal.add_argument("--synthetic", action="store_true", help="rehearse on rendered images")
+    _sim_arguments(cal)
     cal.add_argument("--seed", type=int, default=0, help="seed of the generated poses")
     cal.add_argument(
         "--taught",

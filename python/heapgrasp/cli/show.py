@@ -1,8 +1,10 @@
 """``heapgrasp show RUN_DIR``: a finished run's scene replayed and recorded for Rerun.
 
-Runs are deterministic: the scene is run again from the run's ``config.json`` with a
-recorder attached (:mod:`heapgrasp.viz.recorder`), and the replay's outcomes are checked
-against the recorded ones.
+Simulated runs are deterministic: the scene is run again from the run's ``config.json``
+with a recorder attached (:mod:`heapgrasp.viz.recorder`), and the replay's outcomes are
+checked against the recorded ones. A robot run (``robot run --execute``, on the arm or
+rehearsed with ``--sim``) cannot be run again: its recorded frames are planned again
+(:func:`heapgrasp.real.replay.replay`) with the recorder attached.
 """
 
 from __future__ import annotations
@@ -26,7 +28,8 @@ def add_parser(
         "show",
         help="record a finished run's scene for the Rerun viewer (a 3-D view of every phase)",
         description="Replay one scene of a finished run (heapgrasp run or bench sim's "
-        "OUT/METHOD) and record every phase with rerun-sdk: the occupancy grid and its "
+        "OUT/METHOD; or one run of a `robot run --execute` folder, planned again from its "
+        "recorded frames) and record every phase with rerun-sdk: the occupancy grid and its "
         "high-confidence voxels frame by frame, the images and masks, the camera path and "
         "view waypoints, the candidate, target and executed grasps with their outcomes, "
         "on the timelines phase, frame and time. Writes RUN_DIR/viz/scene-NNN.rrd (open it "
@@ -47,6 +50,68 @@ def _fail(message: str) -> int:
     return 2
 
 
+def _open(args: argparse.Namespace, out: Path) -> int:
+    print(f"recording: {out}")
+    if args.web:
+        print("serving it to a browser (Ctrl-C to stop)")
+        return subprocess.call([sys.executable, "-m", "rerun", "--web-viewer", str(out)])
+    print(
+        f"open it with: rerun {out}  (the `rerun` viewer comes with rerun-sdk, which "
+        "pip install 'heapgrasp[viz]' installs; or heapgrasp show --web for a browser)"
+    )
+    return 0
+
+
+def _show_robot_run(args: argparse.Namespace, rundir: object) -> int:
+    """``show`` on a robot run's folder: its recorded frames planned again, recorded."""
+    from heapgrasp.geometry.grid import GridFrame
+    from heapgrasp.loop.records import RecordError, RunDir
+    from heapgrasp.real.replay import replay
+    from heapgrasp.robot.errors import RobotError
+    from heapgrasp.viz.recorder import RerunRecorder, import_rerun
+
+    assert isinstance(rundir, RunDir)
+    config = rundir.read_config()
+    assert config is not None
+    try:
+        scenes = sorted(int(r["scene"]) for r in rundir.records())
+    except RecordError as exc:
+        return _fail(str(exc))
+    if args.scene not in scenes:
+        held = ", ".join(map(str, scenes)) or "none"
+        return _fail(f"--scene {args.scene}: the robot run holds runs {held}")
+    try:
+        import_rerun()
+    except ImportError as exc:
+        return _fail(str(exc))
+    out: Path = args.out or rundir.path / "viz" / f"scene-{args.scene:03d}.rrd"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    print(
+        f"heapgrasp show: planning run {args.scene} of {rundir.path} again from its recorded "
+        "frames, with a recorder …",
+        file=sys.stderr,
+        flush=True,
+    )
+    grid = GridFrame((0.0, 0.0, 0.0), config.cube_size, config.resolution)
+    recorder = RerunRecorder(out, grid, config.lam, name=f"robot-run-{args.scene}")
+    t0 = time.perf_counter()
+    try:
+        result = replay(
+            rundir.path,
+            out=out.with_suffix(".json"),
+            observer=recorder,
+            scenes=[args.scene],
+        )
+    except RobotError as exc:
+        return _fail(str(exc))
+    finally:
+        recorder.close()
+    print(f"heapgrasp show: done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    outcomes = [r["recorded_outcome"] for r in result["phases"]]
+    print(f"run {args.scene}: {len(outcomes)} phase(s), recorded outcomes {outcomes}")
+    return _open(args, out)
+
+
 def show_command(args: argparse.Namespace) -> int:
     """Runs ``heapgrasp show``; returns the exit status."""
     from heapgrasp.loop.records import CONFIG_FILE, RecordError, RunDir
@@ -61,6 +126,8 @@ def show_command(args: argparse.Namespace) -> int:
         return _fail(f"{exc} (a run written by another heapgrasp version cannot be replayed)")
     if config is None:
         return _fail(f"{run_dir} holds no run ({CONFIG_FILE} not found)")
+    if (run_dir / "robot.json").is_file():
+        return _show_robot_run(args, rundir)
     if not 0 <= args.scene < config.scenes:
         return _fail(f"--scene {args.scene}: the run has scenes 0 to {config.scenes - 1}")
     try:
@@ -93,12 +160,4 @@ def show_command(args: argparse.Namespace) -> int:
                 "the scene differently",
                 file=sys.stderr,
             )
-    print(f"recording: {out}")
-    if args.web:
-        print("serving it to a browser (Ctrl-C to stop)")
-        return subprocess.call([sys.executable, "-m", "rerun", "--web-viewer", str(out)])
-    print(
-        f"open it with: rerun {out}  (the `rerun` viewer comes with rerun-sdk, which "
-        "pip install 'heapgrasp[viz]' installs; or heapgrasp show --web for a browser)"
-    )
-    return 0
+    return _open(args, out)
