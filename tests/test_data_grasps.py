@@ -282,6 +282,10 @@ def test_cli(
     assert main([*args, "--shard-size", "1"]) == 0  # every shard there: nothing to run
     summary = json.loads(capsys.readouterr().out)
     assert summary["samples"] == 2 and summary["grasps"] > 0 and summary["complete"]
+    # the same with a pool: nothing to run starts no pool (it was "max_workers must be
+    # greater than 0", exit 2, for a complete dataset run again with --workers 2)
+    assert main([*args[:-2], "--workers", "2", "--shard-size", "1"]) == 0
+    assert json.loads(capsys.readouterr().out)["complete"]
     assert main([*args, "--shard-size", "2"]) == 2  # refused
     assert "shard_size: 1 there, 2 asked" in capsys.readouterr().err
     assert main(["data", "grasps", str(out), "--scenes", "0"]) == 2

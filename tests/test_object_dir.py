@@ -140,13 +140,13 @@ def test_subfolders_load_with_origins_scales_and_convex_pieces(
     assert 8e-5 * 0.9 < volume < 1.28e-4 * 0.9  # the U is 80 cm³, its convex hull 128 cm³
 
     # Cached by content: the second load runs no decomposition and gives the same files.
-    import pybullet
+    import heapgrasp.sim.objects as objects
 
     def refuse(*args: object, **kwargs: object) -> None:
         raise AssertionError("pybullet.vhacd ran again")
 
     before = {p: p.read_bytes() for m in (box, u) for p in (m.visual_mesh, *m.collision_meshes)}
-    monkeypatch.setattr(pybullet, "vhacd", refuse)
+    monkeypatch.setattr(objects, "_vhacd", refuse)
     t0 = time.perf_counter()
     again = user_models(folder, cache)
     assert time.perf_counter() - t0 < max(0.5, first_s / 4)
@@ -311,3 +311,31 @@ def test_a_flat_mesh_is_skipped_not_decomposed(tmp_path: Path, cache: Path) -> N
     models = user_models(folder, cache, on_bad=lambda name, problem: bad.append((name, problem)))
     assert [m.name for m in models] == ["user/box"]
     assert [name for name, _ in bad] == ["user/sheet"] and "sheet.obj" in bad[0][1]
+
+
+def test_a_junk_mesh_file_is_named_as_such(tmp_path: Path, cache: Path) -> None:
+    # random bytes under .stl: trimesh reached for an optional text decoder, and the
+    # message was "No module named 'charset_normalizer'"
+    folder = tmp_path / "junk"
+    folder.mkdir()
+    (folder / "noise.stl").write_bytes(np.random.default_rng(0).bytes(3000))
+    trimesh.creation.box(extents=(0.05, 0.06, 0.08)).export(str(folder / "box.obj"))
+    bad: list[tuple[str, str]] = []
+    models = user_models(folder, cache, on_bad=lambda name, problem: bad.append((name, problem)))
+    assert [m.name for m in models] == ["user/box"]
+    ((name, problem),) = bad
+    assert name == "user/noise" and "noise.stl" in problem
+    assert "not a valid STL file" in problem and "module" not in problem
+
+
+def test_a_decomposition_that_runs_too_long_is_stopped(tmp_path: Path) -> None:
+    # V-HACD is C code that cannot be interrupted where it runs: it runs in a child
+    # process, stopped at the bound, and the object is skipped with the reason
+    from heapgrasp.sim.objects import _vhacd
+
+    mesh = trimesh.creation.annulus(r_min=0.02, r_max=0.04, height=0.05)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    with pytest.raises(ValueError, match=r"ran past 0.01 s and was stopped"):
+        _vhacd(vertices, faces, tmp_path, timeout=0.01)
+    assert len(_vhacd(vertices, faces, tmp_path)) > 1  # unbounded enough: the pieces

@@ -191,6 +191,9 @@ def test_the_whole_robot_path_rehearses_from_the_command_line(
     assert json.loads((run / "robot.json").read_text())["hand"] == "panda"
     summary = json.loads((run / "results.json").read_text())
     assert summary["grasps_succeeded"] == succeeded
+    # the folder reads as a simulated run's: a summary page and its figure
+    assert "success (%)" in (run / "summary.md").read_text()
+    assert (run / "summary.png").stat().st_size > 0
 
     # replay plans every phase again from the recorded frames and silhouettes: the same
     # grasps where nothing changed
@@ -226,3 +229,50 @@ def test_a_rehearsal_refuses_what_a_robot_toml_gets_wrong(
     toml.write_text(toml.read_text().replace('view_planner = "network"', 'view_planner = "x"'))
     assert main(["robot", "run", "--config", str(toml), "--sim"]) == 2
     assert "view_planner" in capsys.readouterr().err
+
+
+def test_a_robot_run_killed_outright_loses_nothing_and_mixes_nothing(tmp_path: Path) -> None:
+    # kill -9 mid-run records nothing for that run; its frames were left where the next
+    # run writes its own, and a replay mixed them in. Now they are set aside, the next run
+    # records cleanly, and the folder replays.
+    import os
+    import random
+    import signal
+    import subprocess
+    import sys
+
+    toml = _template(tmp_path, fps=15)
+    with toml.open("a") as f:  # the rig's true calibration, as `calibrate --sim` finds it
+        f.write(
+            f"\n[calibration]\ncam2tcp = {TRUE_CAM2TCP.tolist()}\n"
+            f"world2base = {np.linalg.inv(BASE2WORLD).tolist()}\n"
+        )
+    run = tmp_path / "run"
+    argv = [sys.executable, "-m", "heapgrasp", "robot", "run", "--config", str(toml), "--sim"]
+    argv += ["--execute", "--objects", "1", "--resume", "--out", str(run)]
+    rng = random.Random(0)
+    for _ in range(2):
+        proc = subprocess.Popen(
+            argv, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
+        try:
+            proc.wait(timeout=rng.uniform(6.0, 10.0))
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=600, check=False)
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = (run / "scenes.jsonl").read_text().splitlines()
+    records = [json.loads(line) for line in lines]  # every line whole
+    assert records and records[-1].get("stop_reason")
+    frames = run / "frames"
+    aside = sorted(p.name for p in frames.iterdir() if ".unrecorded-" in p.name)
+    recorded = sorted(p.name for p in frames.iterdir() if ".unrecorded-" not in p.name)
+    assert recorded == [f"scene_{r['scene']:03d}" for r in records]
+    assert len(aside) + len(records) >= 1
+    assert all(
+        r.get("frames_set_aside") in (None, *[f"frames/{a}" for a in aside]) for r in records
+    )
+    assert main(["replay", str(run)]) == 0
+    replayed = json.loads((run / "replay.json").read_text())
+    assert replayed["phases_replayed"] == sum(len(r["phases"]) for r in records)

@@ -113,9 +113,21 @@ def test_an_executed_run_clears_the_scene_as_the_fake_robot_does(rig: Rig, tmp_p
     assert results["grasps_succeeded"] == 2 and results["objects_total"] == 2
     frames = sorted((out / "frames" / "scene_000").glob("phase_*/*.npz"))
     assert len(frames) >= 3 * (1 + METHOD["L"]) - METHOD["L"]
-    # a second run without --resume is refused, with it appended
+    # a second run without --resume is refused, with it appended: the folder holds both
     with pytest.raises(RobotConfigError, match="--resume"):
         execute(cfg, out, objects=1, drivers=rig.drivers())
+    again = make_rig()
+    try:
+        second = execute(cfg, out, objects=1, resume=True, drivers=again.drivers())
+    finally:
+        again.server.close()
+    assert second["scene"] == 1
+    lines = (out / "scenes.jsonl").read_text().splitlines()
+    assert [json.loads(line)["scene"] for line in lines] == [0, 1]
+    results = json.loads((out / "results.json").read_text())
+    assert results["objects_total"] == 3  # both runs' objects
+    assert json.loads((out / "config.json").read_text())["scenes"] == 2
+    assert replay(out)["phases_replayed"] >= len(record["phases"]) + 1
 
 
 def test_a_protective_stop_stops_the_run_and_keeps_the_record(rig: Rig, tmp_path: Path) -> None:
@@ -351,3 +363,40 @@ def test_a_bad_network_file_is_refused_before_any_device(rig: Rig, tmp_path: Pat
     items = {i["item"]: i for i in check(cfg, drivers=rig.drivers())}
     assert not items["grasp and view planners"]["ok"]
     assert "bad.onnx" in items["grasp and view planners"]["detail"]
+
+
+def test_check_names_a_silent_gripper_and_a_silent_camera(rig: Rig, tmp_path: Path) -> None:
+    # a gripper address that accepts the connection and never answers, a camera that
+    # starts and never delivers: check reports both, each within its timeout, and goes on
+    import socket
+
+    from heapgrasp.robot.robotiq import Robotiq2F140
+
+    silent = socket.socket()
+    silent.bind(("127.0.0.1", 0))
+    silent.listen()  # the kernel accepts; nobody reads or answers
+    port = silent.getsockname()[1]
+
+    class SilentCamera(type(rig.camera)):  # type: ignore[misc]
+        def _emit_due(self) -> None:  # the device never sends a frame
+            pass
+
+    extra = "[camera]\ntimeout = 0.2\n[gripper]\ntimeout = 0.3\n"
+    cfg = robot_toml(tmp_path, method=METHOD, extra=extra)
+    base = rig.drivers()
+    drivers = Drivers(
+        arm=base.arm,
+        camera=lambda settings: SilentCamera(rig.ctl, rig.scene),
+        gripper=lambda config: Robotiq2F140("127.0.0.1", port, timeout=config.gripper.timeout),
+        clock=base.clock,
+        sleep=base.sleep,
+    )
+    try:
+        items = {i["item"]: i for i in check(cfg, drivers=drivers)}
+    finally:
+        silent.close()
+    assert not items["camera"]["ok"] and "no frame within 0.2 s" in items["camera"]["detail"]
+    gripper = items["gripper"]
+    assert not gripper["ok"] and f"127.0.0.1:{port}" in gripper["detail"]
+    assert "0.3 s" in gripper["detail"]
+    assert items["arm"]["ok"]  # the other devices are still checked

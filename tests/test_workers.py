@@ -53,3 +53,44 @@ def test_pool_workers_die_with_a_killed_parent(tmp_path: Path) -> None:
         if parent.poll() is None:
             parent.kill()
             parent.wait(timeout=30)
+
+
+#: A parent that starts one worker, which is still starting (asleep) when the parent
+#: exits; the worker then sets itself up and would sleep for a minute more.
+_LATE_WORKER = """
+import multiprocessing, os, sys, time
+
+def worker(path):
+    time.sleep(1.5)  # still starting up when its parent is gone
+    from heapgrasp.loop.workers import die_with_parent
+    die_with_parent()
+    with open(path, "w") as f:
+        f.write(str(os.getpid()))
+    time.sleep(60)
+
+if __name__ == "__main__":
+    ctx = multiprocessing.get_context(sys.argv[2])
+    p = ctx.Process(target=worker, args=(sys.argv[1],))
+    p.start()
+    with open(sys.argv[1] + ".child", "w") as f:
+        f.write(str(p.pid))
+    os._exit(0)  # the parent gone without a word, as after kill -9
+"""
+
+
+def test_a_worker_still_starting_when_its_parent_died_ends_too(tmp_path: Path) -> None:
+    # the worker took its adopter for its parent: it lived on for ever
+    script = tmp_path / "late.py"
+    script.write_text(_LATE_WORKER)
+    for method in ("fork", "spawn"):
+        marker = tmp_path / f"{method}.pid"
+        subprocess.run([sys.executable, str(script), str(marker), method], check=True, timeout=60)
+        child = int(Path(str(marker) + ".child").read_text())
+        deadline = time.monotonic() + 30
+        while _alive(child) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        alive = _alive(child)
+        if alive:
+            os.kill(child, signal.SIGKILL)
+        assert not alive, f"{method}: the worker outlived its parent"
+        assert not marker.exists()  # it ended before doing any work

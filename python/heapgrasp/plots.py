@@ -19,7 +19,7 @@ import numpy as np
 
 from heapgrasp.loop.config import RunConfig
 
-__all__ = ["figure_grids", "figure_paths", "figure_run"]
+__all__ = ["figure_grids", "figure_paths", "figure_run", "write_run_page"]
 
 
 def _pyplot() -> Any:
@@ -73,6 +73,20 @@ def _path_panel(ax: Any, rec: dict[str, Any] | None, size: float, title: str) ->
     ax.legend(fontsize=7, loc="upper right")
 
 
+def write_run_page(summary: dict[str, Any], text: str, out: Path) -> list[Path]:
+    """``out/summary.md`` (the printed table) and ``out/summary.png``
+    (:func:`heapgrasp.plots.figure_run`); returns the files written."""
+    md = out / "summary.md"
+    md.write_text(
+        f"# {summary.get('label', summary['method'])}\n\n```\n{text}\n```\n\n"
+        "![the first phase's camera path, and where the objects went](summary.png)\n\n"
+        "Every number: `results.json`; every scene: `scenes.jsonl`.\n"
+    )
+    png = out / "summary.png"
+    figure_run(summary, png)
+    return [md, png]
+
+
 def figure_run(summary: dict[str, Any], path: Path) -> None:
     """A finished run at a glance (``run``'s ``summary.png``): the camera path of the first
     scene's first phase, and per scene group where the objects went."""
@@ -90,11 +104,18 @@ def figure_run(summary: dict[str, Any], path: Path) -> None:
 
     def counts(o: dict[str, Any]) -> dict[str, float]:
         left, graspable = o.get("objects_left") or 0, o.get("leftovers_graspable") or 0
+        removed = float(o.get("objects_removed", 0))
+        knocked = float(o.get("objects_knocked_out", 0))
+        # a robot cannot count what it left: the rest of the objects placed
+        rest = 0.0
+        if o.get("objects_left") is None:
+            rest = max(0.0, float(o.get("objects_total") or 0) - removed - knocked)
         return {
-            "removed": float(o.get("objects_removed", 0)),
-            "knocked out": float(o.get("objects_knocked_out", 0)),
+            "removed": removed,
+            "knocked out": knocked,
             "left, graspable": float(graspable),
             "left, ungraspable": float(left - graspable),
+            "not removed (a robot's run: not analysed)": rest,
         }
 
     colours = {
@@ -102,11 +123,14 @@ def figure_run(summary: dict[str, Any], path: Path) -> None:
         "knocked out": "tab:orange",
         "left, graspable": "tab:red",
         "left, ungraspable": "tab:gray",
+        "not removed (a robot's run: not analysed)": "lightgray",
     }
     per_group = [counts(g.get("objects") or {}) for g in groups.values()]
     bottom = np.zeros(len(names))
     for label, colour in colours.items():
         values = [c[label] for c in per_group]
+        if label.startswith("not removed") and not any(values):
+            continue  # a simulated run accounts for every object
         right.bar(names, values, bottom=bottom, color=colour, label=label)
         bottom += np.asarray(values)
     right.set_ylabel("objects")

@@ -37,7 +37,7 @@ from heapgrasp.loop.records import (
     RunLockedError,
     write_json,
 )
-from heapgrasp.loop.summary import summarize
+from heapgrasp.loop.summary import format_summary, summarize
 
 __all__ = [
     "CONFIG_FILE",
@@ -389,75 +389,3 @@ def _run_scenes(
     if rundir is not None:
         write_json(rundir.results_file, summary)
     return summary
-
-
-def _fmt(stat: dict[str, float | None], digits: int = 2) -> str:
-    if stat.get("mean") is None:
-        return "–"
-    return f"{stat['mean']:.{digits}f} ± {stat['std']:.{digits}f}"
-
-
-def format_summary(summary: dict[str, Any]) -> str:
-    """A plain-text table of a :func:`summarize` result (overall and per scene group)."""
-    rows = [("overall", summary), *list(summary.get("per_scene_group", {}).items())]
-    head = (
-        f"{'scenes':<12} {'success (%)':>22} {'removed':>9} {'trajectory (m)':>15} "
-        f"{'shortest ratio (%)':>19} {'exec time (s)':>14}"
-    )
-    lines = [summary.get("label", summary["method"]), head, "-" * len(head)]
-    for name, s in rows:
-        rate = s.get("grasp_success_rate")
-        succ = (
-            "–"
-            if rate is None
-            else f"{100 * rate:.1f} ({s['grasps_succeeded']}/{s['grasps_attempted']})"
-        )
-        removed = f"{s['objects_removed']}/{s.get('objects_total', '?')}"
-        lines.append(
-            f"{name:<12} {succ:>22} {removed:>9} {_fmt(s['trajectory_length_m']):>15} "
-            f"{_fmt(s['shortest_trajectory_ratio'], 0):>19} {_fmt(s['execution_time_s']):>14}"
-        )
-    objects = summary.get("objects") or {}
-    if objects.get("objects_left") is not None and objects.get("objects_total"):
-        total = objects["objects_total"]
-        lines.append(
-            f"objects: {objects['objects_removed']} removed, {objects['objects_left']} left "
-            f"({objects['leftovers_graspable']} of them graspable on their true meshes), "
-            f"{objects['objects_knocked_out']} knocked out of the workspace, of {total}; "
-            f"removal ceiling {100 * objects['removal_ceiling']:.1f} %"
-        )
-    looked = summary.get("looked_again") or {}
-    if looked.get("phases"):
-        lines.append(
-            f"looked again: {looked['phases']} phase(s) found no grasp at first; "
-            f"{looked['found']} found one on a look again"
-        )
-    ref = summary.get("reference_grid")
-    if ref:
-        lines.append(
-            f"Ŝ≥λ against the noise-free grid (Table V): MSE {_fmt(ref['mse_percent'])} % "
-            f"of the voxels, IoU {_fmt(ref['iou'])}"
-        )
-    if summary.get("grasp_success_ci95"):
-        lo, hi = summary["grasp_success_ci95"]
-        lines.append(f"success rate, 95 % interval (Wilson): [{lo:.1f}, {hi:.1f}] %")
-    lat = summary.get("planning_latency_per_waypoint_s", {})
-    wall = summary.get("wall_time_per_scene_s", {})
-    grasp = summary.get("grasp_planning_per_call_s", {})
-    lines.append(
-        f"planning latency per waypoint: {_fmt(lat, 3)} s; grasp planning per call: "
-        f"{_fmt(grasp, 3)} s; wall-clock per scene: {_fmt(wall, 1)} s; stop reasons: "
-        f"{summary.get('stop_reasons')}"
-    )
-    if summary.get("early_stops"):
-        lines.append(
-            f"view waypoints per phase: {_fmt(summary['view_waypoints_per_phase'], 2)} "
-            f"({summary['early_stops']} of {len(summary.get('phases', []))} phases stopped "
-            "viewing early)"
-        )
-    placed, asked = summary.get("objects_total"), summary.get("objects_requested")
-    if isinstance(placed, int) and isinstance(asked, int) and placed < asked:
-        lines.append(f"objects placed: {placed} of the {asked} asked for (a pile drops some)")
-    if summary.get("scenes_failed"):
-        lines.append(f"FAILED scenes: {summary['scenes_failed']}")
-    return "\n".join(lines)

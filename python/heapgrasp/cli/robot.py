@@ -186,6 +186,7 @@ def _run(args: argparse.Namespace) -> int:
     except RobotError as exc:
         out = Path(args.out)
         if out.is_dir() and any(out.iterdir()):
+            _page(out)
             print(f"heapgrasp: the run's records and frames are kept in {out}", file=sys.stderr)
         else:
             print(f"heapgrasp: nothing was written to {out}", file=sys.stderr)
@@ -193,11 +194,19 @@ def _run(args: argparse.Namespace) -> int:
     finally:
         if rig is not None:
             rig.close()
+    if record.get("frames_set_aside"):
+        print(
+            f"heapgrasp: frames of an earlier run that recorded nothing (killed?) were kept "
+            f"as {Path(args.out) / record['frames_set_aside']}",
+            file=sys.stderr,
+        )
     phases = record.get("phases", [])
     ok = sum(1 for p in phases if p.get("outcome") == "success")
+    written = _page(Path(args.out))
     print(
         f"run {record['scene']}: {ok} of {len(phases)} grasps succeeded, stopped: "
         f"{record.get('stop_reason')}; results in {Path(args.out) / 'results.json'}"
+        + (f"; summary: {', '.join(map(str, written))}" if written else "")
     )
     truth = record.get("rehearsal")
     if truth:
@@ -207,6 +216,19 @@ def _run(args: argparse.Namespace) -> int:
             f"`heapgrasp show {args.out}`"
         )
     return 0
+
+
+def _page(out: Path) -> list[Path]:
+    """``OUT/summary.md`` and ``OUT/summary.png`` from ``OUT/results.json``, as
+    ``heapgrasp run`` writes them (the runs so far); none where there is no summary."""
+    from heapgrasp.loop.summary import format_summary
+    from heapgrasp.plots import write_run_page
+
+    try:
+        summary = json.loads((out / "results.json").read_text())
+    except (OSError, ValueError):
+        return []
+    return write_run_page(summary, format_summary(summary), out)
 
 
 def _print_dry_run(result: dict[str, Any], out: Path) -> None:

@@ -12,7 +12,6 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 from heapgrasp.bench.argtypes import OBJECT_DIR_HELP, object_dir
 from heapgrasp.loop.config import (
@@ -194,24 +193,10 @@ def run_command(args: argparse.Namespace) -> int:
         return 130
     text = format_summary(summary)
     print(text)
-    written = write_run_summary(summary, text, out)
+    from heapgrasp.plots import write_run_page
+
+    written = write_run_page(summary, text, out)
     print(f"results: {out / 'results.json'}; summary: {', '.join(str(p) for p in written)}")
     if args.viz:
         print(f"recordings: {out / 'viz'} (one .rrd per scene; view with `rerun FILE`)")
     return 1 if summary["scenes_failed"] else 0
-
-
-def write_run_summary(summary: dict[str, Any], text: str, out: Path) -> list[Path]:
-    """``out/summary.md`` (the printed table) and ``out/summary.png``
-    (:func:`heapgrasp.plots.figure_run`); returns the files written."""
-    from heapgrasp.plots import figure_run
-
-    md = out / "summary.md"
-    md.write_text(
-        f"# {summary.get('label', summary['method'])}\n\n```\n{text}\n```\n\n"
-        "![the first phase's camera path, and where the objects went](summary.png)\n\n"
-        "Every number: `results.json`; every scene: `scenes.jsonl`.\n"
-    )
-    png = out / "summary.png"
-    figure_run(summary, png)
-    return [md, png]

@@ -376,7 +376,9 @@ def generate(
         _write_manifest(out, spec, config, objects, started)
 
     run = _Run(config, str(out), done, failures)
-    if ray_address is not None:
+    if not todo:
+        pass  # complete: no pool, no cluster
+    elif ray_address is not None:
         run.ray(todo, ray_address)
     elif workers == 1:
         for shard in todo:

@@ -24,8 +24,17 @@ _PR_SET_PDEATHSIG = 1
 def die_with_parent(poll_s: float = 1.0) -> None:
     """Ends this process when its parent dies. On Linux the kernel sends it ``SIGKILL``
     (``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon thread checks the parent every
-    ``poll_s`` seconds. A parent already gone by the time this runs ends it at once."""
-    parent = os.getppid()
+    ``poll_s`` seconds. A parent already gone by the time this runs ends it at once: the
+    parent is the process that started this one (``multiprocessing``'s record of it, for
+    a pool's worker), not whoever adopted it after a kill — a worker still starting up
+    when its parent was killed would otherwise take its adopter for its parent and live
+    on."""
+    import multiprocessing
+
+    started_by = multiprocessing.parent_process()
+    parent = started_by.pid if started_by is not None and started_by.pid else os.getppid()
+    if os.getppid() != parent:  # already gone
+        os._exit(1)
     if sys.platform.startswith("linux"):
         try:
             libc = ctypes.CDLL(None, use_errno=True)

@@ -240,6 +240,20 @@ class _Planned:
         )
 
 
+def _set_aside(frames: Path) -> Path | None:
+    """Frames under the next run's folder that no record claims — a run killed outright
+    (``kill -9``, a power cut) records nothing — renamed beside it, so that the new run's
+    frames are not mixed with them and nothing is lost; returns the new name."""
+    if not frames.exists():
+        return None
+    for n in range(1, 10_000):
+        aside = frames.with_name(f"{frames.name}.unrecorded-{n}")
+        if not aside.exists():
+            frames.rename(aside)
+            return aside
+    raise RobotConfigError(f"{frames}: too many unrecorded runs set aside beside it")
+
+
 def execute(
     config_path: str | Path,
     out: str | Path,
@@ -266,13 +280,16 @@ def execute(
                 f"{rundir.path} already holds {len(records)} run(s); pass --resume to add "
                 "one, or choose another --out"
             )
-        if resume and saved is not None and saved != cfg:
+        scene = len(records)
+        # the folder's run count: each executed run is a scene of the folder's records
+        cfg = cfg.replace({"scenes": scene + 1}, source="the robot run's count")
+        if resume and saved is not None and saved.replace({"scenes": cfg.scenes}) != cfg:
             raise RobotConfigError(
                 f"--resume: the settings differ from {rundir.config_file} ({saved.changes_to(cfg)})"
             )
         rundir.write_config(cfg)
         write_json(rundir.path / ROBOT_FILE, robot_record(robot_cfg, d))
-        scene = len(records)
+        aside = _set_aside(rundir.path / "frames" / f"scene_{scene:03d}")
         planned = _Planned()
         t0 = time.perf_counter()
         record: dict[str, Any] = {
@@ -283,6 +300,8 @@ def execute(
             "objects_total": objects,
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         }
+        if aside is not None:
+            record["frames_set_aside"] = str(aside.relative_to(rundir.path))
         failure: BaseException | None = None
         try:
             with HardwareRobot.connect(robot_cfg, d) as hw:

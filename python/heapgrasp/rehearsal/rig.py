@@ -95,6 +95,8 @@ class Rehearsal:
     ) -> None:
         if objects < 0 or (objects == 0 and not board):
             raise ValueError(f"objects must be at least 1, got {objects}")
+        if not board:  # the simulator's bounds on a scene (RunConfig's), named
+            config = config.replace({"objects": objects}, source="--objects")
         self.robot = robot
         self.config = config
         self.seed = seed

@@ -48,7 +48,6 @@ import sys
 import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -242,8 +241,22 @@ def load_mesh(path: Path | str) -> tuple[FloatArray, IntArray]:
     try:
         mesh = trimesh.load(str(p), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for bad files
-        raise ValueError(f"cannot load mesh {p}: {exc}") from exc
+        raise _unreadable(p, exc) from exc
     return _checked(mesh, p)
+
+
+def _unreadable(p: Path, exc: Exception) -> ValueError:
+    """The error for a mesh file trimesh cannot parse. trimesh meets bytes that are
+    neither a binary nor a text mesh by reaching for an optional text-encoding detector
+    (an ImportError that says nothing about the file): that is a damaged or misnamed
+    file, said so."""
+    kind = p.suffix.lstrip(".").upper() or "mesh"
+    if isinstance(exc, ImportError):
+        return ValueError(
+            f"cannot load mesh {p}: not a valid {kind} file (neither a binary nor a text "
+            "mesh: damaged, or another format under that name)"
+        )
+    return ValueError(f"cannot load mesh {p}: {exc}")
 
 
 def _checked(mesh: object, p: Path) -> tuple[FloatArray, IntArray]:
@@ -863,35 +876,50 @@ def _obj_objects(path: Path) -> list[object]:
             str(path), force="scene", process=False, split_objects=True, group_material=False
         )
     except Exception as exc:  # trimesh raises many types for bad files
-        raise ValueError(f"cannot load mesh {path}: {exc}") from exc
+        raise _unreadable(path, exc) from exc
     if not isinstance(scene, trimesh.Scene):
         raise ValueError(f"cannot load mesh {path}: got {type(scene).__name__}, not objects")
     return list(scene.geometry.values())
 
 
-@contextmanager
-def _quiet_stdout() -> Iterator[None]:
-    """Sends what C code prints to file descriptor 1 to /dev/null (V-HACD's progress)."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 1)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-        os.close(devnull)
+#: The longest one convex decomposition may run (s) before the object is skipped: a
+#: mesh that passes the checks of :func:`_not_a_solid` can still keep V-HACD busy for
+#: minutes (our objects take seconds).
+VHACD_TIMEOUT_S = 120.0
+
+#: The child process that runs ``pybullet.vhacd`` (C code that cannot be interrupted in
+#: the process that calls it): arguments in, out, log, resolution.
+_VHACD_CHILD = (
+    "import sys, pybullet as pb; "
+    "pb.vhacd(sys.argv[1], sys.argv[2], sys.argv[3], resolution=int(sys.argv[4]))"
+)
 
 
-def _vhacd(vertices: FloatArray, faces: IntArray, work: Path) -> list[FloatArray]:
-    """The vertices of each convex piece of ``pybullet.vhacd``'s decomposition."""
-    from heapgrasp.sim.bullet import pb
+def _vhacd(
+    vertices: FloatArray, faces: IntArray, work: Path, *, timeout: float | None = None
+) -> list[FloatArray]:
+    """The vertices of each convex piece of ``pybullet.vhacd``'s decomposition, run in a
+    child process that is stopped after ``timeout`` s (default :data:`VHACD_TIMEOUT_S`;
+    then a ValueError saying so)."""
+    import subprocess
 
+    limit = VHACD_TIMEOUT_S if timeout is None else timeout
     src, out, log = work / "in.obj", work / "out.obj", work / "vhacd.log"
     src.write_text(_obj_text(vertices, faces, "heapgrasp vhacd input"))
-    with _quiet_stdout():
-        pb.vhacd(str(src), str(out), str(log), resolution=VHACD_RESOLUTION)
+    argv = [sys.executable, "-c", _VHACD_CHILD, str(src), str(out), str(log)]
+    try:
+        subprocess.run(
+            [*argv, str(VHACD_RESOLUTION)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            timeout=limit,
+            check=False,
+        )
+    except subprocess.TimeoutExpired:  # the child is killed
+        raise ValueError(
+            f"the convex decomposition (pybullet.vhacd) of its {len(faces)}-triangle collision "
+            f"mesh ran past {limit:g} s and was stopped; give it a simpler or convex mesh"
+        ) from None
     if not out.is_file():
         return []
     pieces = [
@@ -987,7 +1015,10 @@ def _decomposed(
     work = cache / f".{folder.name}.{os.getpid()}.tmp"
     work.mkdir(parents=True, exist_ok=True)
     try:
-        pieces = [p for v, f in parts for p in _vhacd(v, f, work)]
+        try:
+            pieces = [p for v, f in parts for p in _vhacd(v, f, work)]
+        except ValueError as exc:
+            raise ValueError(f"{name}: {exc}") from None
         if not pieces:
             raise ValueError(
                 f"{name}: the convex decomposition (pybullet.vhacd) of its concave collision "
