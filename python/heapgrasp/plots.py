@@ -11,15 +11,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from heapgrasp.loop.config import RunConfig
-
-__all__ = ["figure_grids", "figure_paths", "figure_run", "write_run_page"]
+__all__ = ["figure_paths", "figure_run", "write_run_page"]
 
 
 def _pyplot() -> Any:
@@ -143,50 +140,4 @@ def figure_run(summary: dict[str, Any], path: Path) -> None:
     fig.suptitle(summary.get("label", summary.get("method", "")))
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
-def figure_grids(base: RunConfig, methods: Sequence[str], path: Path, *, scene: int = 0) -> None:
-    """The measured grid after the first phase's views of ``scene`` per method (Fig. 4),
-    re-running that phase in-process."""
-    from heapgrasp.sim.build import object_library, scene_world, sim_pipeline
-
-    plt = _pyplot()
-    fig = plt.figure(figsize=(4.5 * len(methods), 4.5))
-    library = object_library(base)
-    group = ("transparent", "opaque", "specular", "mixed")[min(3, (4 * scene) // base.scenes)]
-    for k, method in enumerate(methods):
-        config = base.replace({"method": method})
-        seed = config.seed + scene
-        ax = fig.add_subplot(1, len(methods), k + 1, projection="3d")
-        with scene_world(config, seed, group, library=library) as world:
-            pipeline = sim_pipeline(config, world, seed=seed)
-            planned = pipeline.plan()
-            grid = pipeline.perception.grasp_input()
-            cands = pipeline.grasp_candidates()
-        occ = np.argwhere(grid > 0)
-        centres = pipeline.frame.centers(occ)
-        voxels = ax.scatter(
-            *centres.T, s=2, c=centres[:, 2], cmap="viridis", alpha=0.4, label="Ŝ≥λ voxel"
-        )
-        fig.colorbar(voxels, ax=ax, shrink=0.6, pad=0.1, label="voxel height z (m)")
-        if cands:
-            cp = np.stack([c.position for c in cands])
-            ax.scatter(*cp.T, s=25, c="tab:green", depthshade=False, label="grasp candidate")
-        if planned.grasp is not None:
-            g = planned.grasp.pose
-            ax.scatter(*g[:3, 3], s=60, c="tab:red", depthshade=False, label="executed grasp")
-            tip = g[:3, 3] - 0.05 * g[:3, 2]
-            ax.plot(*np.stack([tip, g[:3, 3]]).T, c="tab:red", lw=2)
-        size = config.cube_size
-        ax.set_xlim(0, size)
-        ax.set_ylim(0, size)
-        ax.set_zlim(0, size)
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
-        ax.set_zlabel("z (m)")
-        ax.legend(fontsize=7, loc="upper left")
-        ax.set_title(f"{method} ({group}): {len(occ)} voxels, {len(cands)} grasps")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
     plt.close(fig)
