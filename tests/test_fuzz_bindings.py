@@ -1623,6 +1623,8 @@ def test_grasp_labeller(data):
 # ----------------------------------------------------------------------- module level
 def test_module_functions():
     assert call("kernel_level", [], _core.kernel_level) in {"avx512", "avx2", "baseline"}
+    problem = call("kernel_request_problem", [], _core.kernel_request_problem)
+    assert problem is None or "HEAPGRASP_KERNEL" in problem
     n = call("num_threads", [], _core.num_threads)
     assert isinstance(n, int) and n >= 1
     assert isinstance(_core.__version__, str) and _core.__version__
@@ -2034,6 +2036,7 @@ def test_every_entry_point_is_fuzzed():
         "antipodal_pairs",
         "keep_silhouettes",
         "kernel_level",
+        "kernel_request_problem",
         "num_threads",
     }
     assert {n for n in dir(_core) if not n.startswith("_")} == covered

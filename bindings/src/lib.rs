@@ -26,11 +26,14 @@ use pyo3::prelude::*;
 /// Name of the SIMD build of the carving kernel in use: "avx512", "avx2" or "baseline".
 #[pyfunction]
 fn kernel_level() -> &'static str {
-    match heapgrasp_core::carve::kernel_level() {
-        heapgrasp_core::carve::KernelLevel::Avx512 => "avx512",
-        heapgrasp_core::carve::KernelLevel::Avx2 => "avx2",
-        heapgrasp_core::carve::KernelLevel::Baseline => "baseline",
-    }
+    heapgrasp_core::carve::kernel_level().name()
+}
+
+/// Why `HEAPGRASP_KERNEL` was not honoured (an unknown value, or a level this CPU
+/// lacks), or None.
+#[pyfunction]
+fn kernel_request_problem() -> Option<String> {
+    heapgrasp_core::carve::kernel_request().err()
 }
 
 /// Number of threads the kernels use (`HEAPGRASP_NUM_THREADS` or the CPU count).
@@ -64,6 +67,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(filter::maximum_filter3d, m)?)?;
     m.add_function(wrap_pyfunction!(filter::nms3d, m)?)?;
     m.add_function(wrap_pyfunction!(kernel_level, m)?)?;
+    m.add_function(wrap_pyfunction!(kernel_request_problem, m)?)?;
     m.add_function(wrap_pyfunction!(num_threads, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

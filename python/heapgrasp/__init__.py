@@ -16,7 +16,14 @@ Conventions (shared by every function):
 * A grid is a cube with minimum corner ``origin``, side ``size`` and ``resolution`` R;
   voxel ``[a, b, c]`` has its centre at ``origin + (index + 0.5) * size / R``; volumes are
   ``(R, R, R)`` C-order arrays indexed ``[x, y, z]``.
+
+Kernels: ``kernel_level()`` names the carving kernel in use, the best the CPU has
+(``avx512``, ``avx2`` or ``baseline``); ``HEAPGRASP_KERNEL`` forces a level the CPU has
+(a value it cannot honour is named in a warning at import), ``HEAPGRASP_NO_SIMD`` the
+portable one.
 """
+
+import warnings as _warnings
 
 from heapgrasp._core import (
     GraspLabeller,
@@ -40,6 +47,7 @@ from heapgrasp._core import (
     grasp_region,
     hand_point_counts,
     kernel_level,
+    kernel_request_problem,
     maximum_filter3d,
     nms3d,
     num_threads,
@@ -81,3 +89,6 @@ __all__ = [
     "surfel_visibility",
     "voxel_downsample",
 ]
+
+if (_problem := kernel_request_problem()) is not None:
+    _warnings.warn(f"{_problem}; using the {kernel_level()} kernel", stacklevel=2)

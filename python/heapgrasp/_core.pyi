@@ -46,6 +46,7 @@ __all__ = [
     "hand_point_counts",
     "keep_silhouettes",
     "kernel_level",
+    "kernel_request_problem",
     "maximum_filter3d",
     "nms3d",
     "num_threads",
@@ -522,6 +523,10 @@ def nms3d(volume: _F32, threshold: float, window: int | None = None) -> npt.NDAr
 
 def kernel_level() -> str:
     """``"avx512"``, ``"avx2"`` or ``"baseline"``: the carving kernel build in use."""
+
+def kernel_request_problem() -> str | None:
+    """Why ``HEAPGRASP_KERNEL`` was not honoured (an unknown value, or a level this CPU
+    lacks), or None."""
 
 def num_threads() -> int:
     """Threads used by the kernels (``HEAPGRASP_NUM_THREADS`` or the CPU count)."""
