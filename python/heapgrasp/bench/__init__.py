@@ -11,6 +11,8 @@ its subcommand (and sets ``func``, the function that runs it, as a parser defaul
   its baselines on seed 000's protocol (Tables II/III, Fig. 4/5);
 * :mod:`heapgrasp.bench.grasp` -- ``heapgrasp bench grasp``: the analytic antipodal grasp
   planner on circle / dense Shape-from-Silhouette grids, one executed grasp per scene;
+* :mod:`heapgrasp.bench.topk` -- ``heapgrasp bench topk``: each grasp planner's best
+  few grasps on the grids the closed loop meets, labelled on the true meshes;
 * :mod:`heapgrasp.bench.compare` -- ``heapgrasp bench compare``: two finished runs on
   the same scenes, success rates with intervals and their paired difference;
 * :mod:`heapgrasp.bench.viewsphere` -- ``heapgrasp bench viewsphere``: seed 001's
@@ -27,7 +29,17 @@ from __future__ import annotations
 
 import argparse
 
-from heapgrasp.bench import carve, compare, grasp, paper_tables, seg, sim, viewsphere, world
+from heapgrasp.bench import (
+    carve,
+    compare,
+    grasp,
+    paper_tables,
+    seg,
+    sim,
+    topk,
+    viewsphere,
+    world,
+)
 
 __all__ = ["add_parser"]
 
@@ -63,6 +75,7 @@ def add_parser(
     world.add_parser(benches)
     sim.add_parser(benches)
     grasp.add_parser(benches)
+    topk.add_parser(benches)
     compare.add_parser(benches)
     viewsphere.add_parser(benches)
     seg.add_parser(benches)

@@ -6,7 +6,8 @@ parsed :class:`argparse.Namespace` and returning the exit status::
 
     heapgrasp run [options]                  simulated pick-and-place (HEAPGrasp, baselines)
     heapgrasp show RUN_DIR                   a run's scene recorded for the Rerun viewer
-    heapgrasp bench carve|world|sim|grasp    benchmarks
+    heapgrasp bench carve|world|sim|grasp|topk|compare|viewsphere|seg|noise|clutter
+                                             benchmarks
     heapgrasp sim capture                    frames of a seeded scene
     heapgrasp critic data|train|eval         the learned grasp critic
     heapgrasp data views                     the view network's dataset (Algorithm 1)
@@ -14,7 +15,9 @@ parsed :class:`argparse.Namespace` and returning the exit status::
     heapgrasp train views DATA_DIR ...       the view network trained on that dataset
     heapgrasp train grasps DATA ...          the grasp network trained on grasp datasets
     heapgrasp seg train|eval|predict|coco    the 4-class segmentation network (DeepLabv3+)
-    heapgrasp robot init|check|calibrate|run the real robot (UR + RealSense + Robotiq)
+    heapgrasp robot init|check|board|calibrate|run
+                                             the real robot (UR + RealSense + Robotiq);
+                                             --sim rehearses it against the simulator
     heapgrasp replay RUN_DIR                 perception and planning rerun on a robot run
 """
 
