@@ -16,10 +16,10 @@ import rtde_receive
 from heapgrasp.cli import main
 from heapgrasp.geometry.gripper import PANDA_HAND
 from heapgrasp.real.setup import load
-from heapgrasp.rehearsal.controller import SimControl, SimReceive
-from heapgrasp.rehearsal.rig import BASE2WORLD, TRUE_CAM2TCP, Rehearsal
-from heapgrasp.rehearsal.ur5e import DH_A, DH_D, UR5e
 from heapgrasp.robot.errors import RobotConfigError
+from heapgrasp.sim.rehearsal.controller import SimControl, SimReceive
+from heapgrasp.sim.rehearsal.rig import BASE2WORLD, TRUE_CAM2TCP, Rehearsal
+from heapgrasp.sim.rehearsal.ur5e import DH_A, DH_D, UR5e
 from scipy.spatial.transform import Rotation
 
 # ---------------------------------------------------------------- kinematics
@@ -68,7 +68,7 @@ def test_the_inverse_finds_reachable_poses_and_refuses_far_ones() -> None:
 
 
 def test_the_rotation_vector_matches_scipys_to_the_half_turn() -> None:
-    from heapgrasp.rehearsal.ur5e import _rotvec
+    from heapgrasp.sim.rehearsal.ur5e import _rotvec
 
     rng = np.random.default_rng(1)
     for i in range(500):

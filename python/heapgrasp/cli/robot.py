@@ -3,7 +3,7 @@
 Nothing moves without ``--execute``: ``run`` and ``calibrate`` default to a dry run that
 checks every motion and sends none (``docs/real_robot.md``). ``--sim`` rehearses
 ``check``, ``calibrate`` and ``run`` against the simulator behind the same drivers
-(:mod:`heapgrasp.rehearsal`): nothing is contacted, no host need be set.
+(:mod:`heapgrasp.sim.rehearsal`): nothing is contacted, no host need be set.
 """
 
 from __future__ import annotations
@@ -81,12 +81,12 @@ REHEARSAL_OBJECTS = 5
 
 
 def _rehearsal(args: argparse.Namespace, *, board: bool = False) -> Any:
-    """The simulator's rig for ``--sim`` (:class:`heapgrasp.rehearsal.Rehearsal`), or None
+    """The simulator's rig for ``--sim`` (:class:`heapgrasp.sim.rehearsal.Rehearsal`), or None
     without it. Raises what reading ``robot.toml`` raises."""
     if not getattr(args, "sim", False):
         return None
     from heapgrasp.real.setup import load
-    from heapgrasp.rehearsal import Rehearsal
+    from heapgrasp.sim.rehearsal import Rehearsal
 
     if board:
         from heapgrasp.robot.calibration import require_opencv

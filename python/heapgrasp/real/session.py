@@ -21,7 +21,7 @@ the arm; the record of that run keeps the error and every phase planned so far, 
 frames stay on disk. ``--resume`` appends the next run to the same directory.
 
 **Rehearsal** (``--sim``): the same two functions with the simulator's drivers
-(:class:`~heapgrasp.robot.hardware.Drivers` with a ``scene``, :mod:`heapgrasp.rehearsal`):
+(:class:`~heapgrasp.robot.hardware.Drivers` with a ``scene``, :mod:`heapgrasp.sim.rehearsal`):
 the planners plan for the drivers' hand, the frames are recorded with their exact
 silhouettes, and an executed run's record gains ``rehearsal``, what the simulator saw
 become of the objects.

@@ -10,7 +10,7 @@ the camera's frame rate, then checked against what a real robot has:
 * the camera paths' speed and acceleration (``max_velocity``, ``max_acceleration``) may
   not exceed ``[limits]`` (the arm would refuse every path).
 
-A rehearsal (``simulated=True``, :mod:`heapgrasp.rehearsal`) has the simulator's scene
+A rehearsal (``simulated=True``, :mod:`heapgrasp.sim.rehearsal`) has the simulator's scene
 truth: without ``[networks] segmentation`` its frames are segmented by their exact
 silhouettes (``segmenter = "truth"``, with ``noise`` where set), as ``heapgrasp run``'s.
 """

@@ -9,7 +9,7 @@ factories the tests replace with fakes.
 ``activate=False`` (the dry run) connects the gripper without activating it: activation
 moves the fingers through their whole stroke, and a dry run moves nothing.
 
-A rehearsal (``heapgrasp robot ... --sim``, :mod:`heapgrasp.rehearsal`) passes drivers
+A rehearsal (``heapgrasp robot ... --sim``, :mod:`heapgrasp.sim.rehearsal`) passes drivers
 whose devices are the simulator's: :attr:`Drivers.scene` then says what only a simulator
 knows (each frame's exact silhouette, what happened to the objects), and no host is
 needed.

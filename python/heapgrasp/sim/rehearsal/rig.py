@@ -4,8 +4,8 @@ drivers' interfaces.
 :class:`Rehearsal` builds a simulated world — a pile of objects from a seed, or the
 ChArUco board on the table for ``robot calibrate`` — with the simulator's hand where
 the arm stands, and hands out :class:`~heapgrasp.robot.hardware.Drivers` whose arm
-(:mod:`heapgrasp.rehearsal.controller`), camera (:mod:`heapgrasp.rehearsal.camera`) and
-gripper (:mod:`heapgrasp.rehearsal.gripper`) are the simulator's. The real-robot
+(:mod:`heapgrasp.sim.rehearsal.controller`), camera (:mod:`heapgrasp.sim.rehearsal.camera`) and
+gripper (:mod:`heapgrasp.sim.rehearsal.gripper`) are the simulator's. The real-robot
 commands run unchanged on them: ``robot.toml`` is read and checked, the arm driver
 checks and streams every motion, the camera's frames are paired with the arm's pose
 record, and the run writes the folder a real run writes.
@@ -32,10 +32,6 @@ from scipy.spatial.transform import Rotation
 from heapgrasp.geometry.gripper import PANDA_HAND
 from heapgrasp.loop.config import RunConfig
 from heapgrasp.perception.frames import Frame
-from heapgrasp.rehearsal.camera import Silhouettes, SimRealSense
-from heapgrasp.rehearsal.controller import SimControl, SimController, SimReceive
-from heapgrasp.rehearsal.gripper import SimRobotiq
-from heapgrasp.rehearsal.ur5e import UR5e
 from heapgrasp.robot.calibration import CharucoBoard, world_in_board
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.hardware import Drivers
@@ -43,6 +39,10 @@ from heapgrasp.robot.realsense import RealSenseSettings
 from heapgrasp.robot.ur import pose_from_rtde
 from heapgrasp.sim.build import object_library
 from heapgrasp.sim.gripper import PandaHand
+from heapgrasp.sim.rehearsal.camera import Silhouettes, SimRealSense
+from heapgrasp.sim.rehearsal.controller import SimControl, SimController, SimReceive
+from heapgrasp.sim.rehearsal.gripper import SimRobotiq
+from heapgrasp.sim.rehearsal.ur5e import UR5e
 from heapgrasp.sim.world import SimWorld, WorldConfig
 
 __all__ = ["BASE2WORLD", "START_CAMERA", "TRUE_CAM2TCP", "Rehearsal"]

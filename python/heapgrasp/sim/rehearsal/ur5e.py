@@ -1,4 +1,5 @@
-"""The UR5e's kinematics, for the rehearsal's controller (:mod:`heapgrasp.rehearsal.controller`).
+"""The UR5e's kinematics, for the rehearsal's controller
+(:mod:`heapgrasp.sim.rehearsal.controller`).
 
 A real UR controller answers ``getForwardKinematics`` and ``getInverseKinematics`` from
 its own model; the rehearsal answers them from the UR5e's nominal Denavit–Hartenberg

@@ -7,7 +7,7 @@ check`` and ``robot calibrate`` make of ``RTDEControlInterface`` and
 unchanged on it (:class:`SimControl`, :class:`SimReceive`). The TCP is the simulator's
 free-flying hand (:class:`heapgrasp.sim.gripper.PandaHand`), placed in the world
 through the rehearsal's true base pose; joints come from the UR5e's kinematics
-(:mod:`heapgrasp.rehearsal.ur5e`), so reach, ``[arm] park`` and the joint-speed caps are
+(:mod:`heapgrasp.sim.rehearsal.ur5e`), so reach, ``[arm] park`` and the joint-speed caps are
 checked as a controller would. Time is the world's simulated clock (offset by
 :data:`EPOCH`, so it reads like a host's): ``moveL`` and ``moveJ`` take the time their
 motion takes, a streamed ``servoL`` the period ``waitPeriod`` waits, and the driver's
@@ -26,8 +26,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.rehearsal.ur5e import UR5e
 from heapgrasp.robot.ur import pose_from_rtde, pose_to_rtde
+from heapgrasp.sim.rehearsal.ur5e import UR5e
 
 if TYPE_CHECKING:
     from heapgrasp.sim.gripper import PandaHand
