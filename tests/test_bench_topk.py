@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 import pytest
-from heapgrasp.bench.topk import KS, TopKConfig, run_scene, summarize
+from heapgrasp.bench.topk import KS, TopKConfig, reliability, run_scene, summarize
 from heapgrasp.cli import main
 
 
@@ -47,9 +47,26 @@ def test_the_command_writes_its_table_and_refuses_bad_settings(
     payload = json.loads((out / "results.json").read_text())
     assert payload["summary"]["antipodal"]["phases"] >= 1
     assert "precision@1" in (out / "summary.md").read_text()
+    assert (out / "reliability.png").stat().st_size > 0
+    assert "reliability.png" in (out / "summary.md").read_text()
     capsys.readouterr()
     assert main([*argv, "--planners", "magic", "--out", str(tmp_path / "x")]) == 2
     assert "magic" in capsys.readouterr().err
     assert main([*argv, "--set", "lamb=0.5", "--out", str(tmp_path / "y")]) == 2
     assert "lamb" in capsys.readouterr().err
     assert not (tmp_path / "y").exists()
+
+
+def test_reliability_bins_scores_and_measures_their_calibration() -> None:
+    """Per bin the grasps, their mean score and the share held; the calibration error
+    is the grasps' weighted mean gap, 0 where scores match the shares held."""
+    scores = [0.55, 0.55, 0.92, 0.92, 0.92, 0.92, 1.0]
+    labels = [True, False, True, True, True, False, True]
+    r = reliability(scores, labels)
+    assert r["grasps"] == 7
+    assert [(b["from"], b["grasps"]) for b in r["bins"]] == [(0.5, 2), (0.9, 4), (0.95, 1)]
+    assert r["bins"][1]["held"] == 0.75 and r["bins"][1]["mean_score"] == pytest.approx(0.92)
+    gap = 2 * abs(0.55 - 0.5) + 4 * abs(0.92 - 0.75) + 1 * 0.0
+    assert r["ece"] == pytest.approx(gap / 7)
+    assert reliability([0.5, 0.5], [True, False])["ece"] == pytest.approx(0.0)
+    assert reliability([], [])["ece"] is None

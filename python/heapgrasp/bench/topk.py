@@ -19,18 +19,21 @@ executed grasps, ``docs/benchmarks.md``).
 Reported per planner: phases with a candidate; precision@k, the share of labelled
 successes among every grasp it ranked ≤ k over all phases (a phase with fewer than k
 candidates adds what it has); the median planning time; and the driver's closed-loop
-success, which its precision@1 should predict. Writes ``OUT/results.json`` (records per
-phase and planner), ``OUT/table.md`` and ``OUT/summary.md``.
+success, which its precision@1 should predict; and how well its scores are calibrated,
+its labelled grasps' share held per score bin (:func:`reliability`: the reliability
+diagram ``OUT/reliability.png`` and the expected calibration error). Writes
+``OUT/results.json`` (records per phase and planner), ``OUT/table.md`` and
+``OUT/summary.md``.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
+import itertools
 import json
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -44,7 +47,16 @@ if TYPE_CHECKING:
     from heapgrasp.loop.phase import Pipeline
     from heapgrasp.sim.world import SimWorld
 
-__all__ = ["PLANNERS", "TopKConfig", "add_parser", "evaluate_phase", "run", "run_bench"]
+__all__ = [
+    "PLANNERS",
+    "TopKConfig",
+    "add_parser",
+    "evaluate_phase",
+    "figure_reliability",
+    "reliability",
+    "run",
+    "run_bench",
+]
 
 #: The planners this benchmark can rank, as changes to the run's settings.
 PLANNERS: dict[str, dict[str, Any]] = {
@@ -76,21 +88,6 @@ class TopKConfig:
         return RunConfig().replace({**base, **self.changes}, source="bench topk")
 
 
-@contextlib.contextmanager
-def _ranking_with(
-    pipeline: Pipeline, config: RunConfig, planner: Any, critic: Any
-) -> Iterator[None]:
-    """``pipeline`` planning grasps as ``config``'s planner and critic would, on its grid
-    as it stands; restored after."""
-    saved = (pipeline.config, pipeline.grasp_planner, pipeline.critic, pipeline.observer)
-    pipeline.config, pipeline.grasp_planner, pipeline.critic = config, planner, critic
-    pipeline.observer = None
-    try:
-        yield
-    finally:
-        pipeline.config, pipeline.grasp_planner, pipeline.critic, pipeline.observer = saved
-
-
 def evaluate_phase(
     pipeline: Pipeline,
     world: SimWorld,
@@ -104,7 +101,7 @@ def evaluate_phase(
     names = label.reasons()
     out: dict[str, Any] = {}
     for name, (config, planner, critic) in rankers.items():
-        with _ranking_with(pipeline, config, planner, critic):
+        with pipeline.planning_as(config, planner, critic):
             t0 = time.perf_counter()
             cands = pipeline.grasp_candidates()
             ms = 1e3 * (time.perf_counter() - t0)
@@ -179,6 +176,62 @@ def run_scene(config: TopKConfig, index: int) -> dict[str, Any]:
     }
 
 
+#: Score bins of the reliability diagram (the last edge holds 1.0).
+BINS = (0.0, 0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95, 1.0)
+
+
+def reliability(scores: Sequence[float], labels: Sequence[bool]) -> dict[str, Any]:
+    """Predicted against measured success of labelled grasps: per score bin of
+    :data:`BINS` the grasps, their mean score and the share that held, and the expected
+    calibration error (the grasps' weighted mean of |mean score − share held| over the
+    bins; 0 for a planner whose scores are probabilities)."""
+    s = np.asarray(scores, dtype=np.float64)
+    y = np.asarray(labels, dtype=np.float64)
+    bins = []
+    ece = 0.0
+    for lo, hi in itertools.pairwise(BINS):
+        inside = (s >= lo) & ((s < hi) if hi < 1.0 else (s <= hi))
+        n = int(inside.sum())
+        if n == 0:
+            continue
+        mean, held = float(s[inside].mean()), float(y[inside].mean())
+        bins.append({"from": lo, "to": hi, "grasps": n, "mean_score": mean, "held": held})
+        ece += n * abs(mean - held)
+    return {"bins": bins, "ece": ece / len(s) if len(s) else None, "grasps": len(s)}
+
+
+def figure_reliability(summary: dict[str, Any], planners: Sequence[str], path: Path) -> None:
+    """The reliability diagram: per planner, each score bin's share held against its
+    mean score (the diagonal: calibrated), the marker's area its grasps."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5, 5))
+    ax.plot([0, 1], [0, 1], "k--", lw=1, label="calibrated")
+    for name in planners:
+        bins = summary[name]["reliability"]["bins"]
+        if not bins:
+            continue
+        x = [b["mean_score"] for b in bins]
+        y = [b["held"] for b in bins]
+        ece = summary[name]["reliability"]["ece"]
+        ax.plot(x, y, "-o", lw=1, ms=3, label=f"{name} (ECE {ece:.3f})")
+        ax.scatter(x, y, s=[4 * b["grasps"] for b in bins], alpha=0.3)
+    ax.set(
+        xlim=(0.4, 1.0),
+        ylim=(0.0, 1.0),
+        xlabel="score (predicted success)",
+        ylabel="share held (exact labeller)",
+        title="top-k grasps on the loop's grids",
+    )
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def summarize(records: Sequence[dict[str, Any]], planners: Sequence[str]) -> dict[str, Any]:
     """Per planner: phases, phases with a candidate, precision@k (successes among the
     labelled grasps ranked ≤ k, over every phase), and the driver's closed-loop success."""
@@ -196,6 +249,9 @@ def summarize(records: Sequence[dict[str, Any]], planners: Sequence[str]) -> dic
             entry[f"labelled@{k}"] = len(labels)
         ms = [r["planning_ms"] for r in rows]
         entry["planning_ms_median"] = float(np.median(ms)) if ms else None
+        scores = [v for r in rows for v in r["scores"][: len(r["labels"])]]
+        labels = [v for r in rows for v in r["labels"]]
+        entry["reliability"] = reliability(scores, labels)
         out[name] = entry
     executed = [o for r in records for o in r.get("driver_outcomes", []) if o != "no_candidate"]
     out["driver_closed_loop"] = {
@@ -210,12 +266,13 @@ def summarize(records: Sequence[dict[str, Any]], planners: Sequence[str]) -> dic
 def markdown_table(summary: dict[str, Any], config: TopKConfig) -> str:
     """The summary as a markdown table."""
     head = "| planner | phases with a candidate | " + " | ".join(f"precision@{k}" for k in KS)
+    head += " | calibration error"
     lines = [
         f"## Top-k grasps on the loop's grids ({config.method}, {config.scenes} scenes from "
         f"seed {config.seed})",
         "",
         head + " | planning (median) |",
-        "|---|--:|" + "--:|" * len(KS) + "--:|",
+        "|---|--:|" + "--:|" * len(KS) + "--:|--:|",
     ]
     for name in config.planners:
         s = summary[name]
@@ -224,6 +281,8 @@ def markdown_table(summary: dict[str, Any], config: TopKConfig) -> str:
             p, n = s[f"precision@{k}"], s[f"labelled@{k}"]
             cells.append("–" if p is None else f"{100 * p:.1f} % ({n})")
         ms = s["planning_ms_median"]
+        ece = s["reliability"]["ece"]
+        cells.append("–" if ece is None else f"{ece:.3f}")
         lines.append(
             f"| {name} | {s['with_candidate']} / {s['phases']} | "
             + " | ".join(cells)
@@ -236,6 +295,9 @@ def markdown_table(summary: dict[str, Any], config: TopKConfig) -> str:
         f"The driver (the run's default planner) executed {d['attempts']} grasps, "
         + ("none" if rate is None else f"{100 * rate:.1f} % of them held")
         + " in physics: its precision@1 should predict that.",
+        "",
+        "Calibration error: the labelled grasps' mean |score − share held| over the score "
+        "bins of the reliability diagram (0: the scores are probabilities).",
     ]
     return "\n".join(lines) + "\n"
 
@@ -309,7 +371,8 @@ def run(args: argparse.Namespace) -> int:
     }
     (out / "results.json").write_text(json.dumps(payload, indent=2) + "\n")
     (out / "table.md").write_text(table)
-    write_summary(out, table)
+    figure_reliability(summary, config.planners, out / "reliability.png")
+    write_summary(out, table, [("reliability.png", "reliability diagram")])
     print(table)
     print(f"results: {out}")
     return 1 if any("error" in r for r in records) else 0

@@ -20,6 +20,19 @@ the grid the loop feeds the grasp network (Ŝ≥λ after Algorithm 1's random vi
 waypoints or no-vp's circle, and the VGN baseline's TSDF), and VGN's grasps labelled on
 the exact geometry, balanced (:mod:`heapgrasp.data.grasps`).
 
+``heapgrasp data loop-grasps``: the grasp network's, on the closed loop's own phases
+(on-policy; DAgger's rounds)::
+
+    heapgrasp data loop-grasps runs/loop-grasps/train --scenes 300 --split train
+    heapgrasp data loop-grasps runs/loop-grasps/val --scenes 40 --split val --seed 1
+
+Every scene is a pile or packed scene of 5 objects run through the clutter-removal
+protocol, the grasp network executing its own best grasps (``--driver network``; or the
+method's default planner); every phase gives the grid the network read, its top
+candidates labelled on the true meshes (whatever the label) and VGN's balanced grasps on
+that grid, in ``data grasps``' format (:mod:`heapgrasp.data.loop_grasps`). The summary
+prints the network's precision@k on those phases.
+
 ``heapgrasp data seg``: the segmentation network's (docs/segmentation.md)::
 
     heapgrasp data seg runs/seg-synth --scenes 500 --views 8 --size 320x240
@@ -61,6 +74,7 @@ __all__ = ["add_parser"]
 def _generate(args: argparse.Namespace, dataset: str, **settings: Any) -> int:
     """Generates the dataset (``views`` or ``grasps``) the options ask for."""
     from heapgrasp.data.grasps import GraspDataConfig
+    from heapgrasp.data.loop_grasps import LoopGraspDataConfig
     from heapgrasp.data.seg import SegDataConfig
     from heapgrasp.data.shards import ShardFailure, generate
     from heapgrasp.data.views import ViewDataConfig
@@ -76,6 +90,8 @@ def _generate(args: argparse.Namespace, dataset: str, **settings: Any) -> int:
     try:
         if dataset == "viewsphere-paths":
             config: Any = ViewspherePathsConfig(**common, **settings)
+        elif dataset == "loop-grasps":
+            config = LoopGraspDataConfig(**common, **settings)
         else:
             config = kinds[dataset](**common, max_objects=args.max_objects, **settings)
     except ValueError as exc:
@@ -99,7 +115,12 @@ def _generate(args: argparse.Namespace, dataset: str, **settings: Any) -> int:
         print(f"heapgrasp: error: {exc}", file=sys.stderr)
         return 2
     keys = ("split", "samples", "dropped", "grasps", "complete")
-    print(json.dumps({"out": str(out), **{k: manifest[k] for k in keys if k in manifest}}))
+    summary = {"out": str(out), **{k: manifest[k] for k in keys if k in manifest}}
+    if dataset == "loop-grasps":
+        from heapgrasp.data.loop_grasps import top_precision
+
+        summary["network_on_these_phases"] = top_precision(out)
+    print(json.dumps(summary))
     return 0
 
 
@@ -109,6 +130,20 @@ def _views(args: argparse.Namespace) -> int:
 
 def _grasps(args: argparse.Namespace) -> int:
     return _generate(args, "grasps", input=args.input, gripper=args.gripper)
+
+
+def _loop_grasps(args: argparse.Namespace) -> int:
+    weights = None if args.weights is None else str(args.weights)
+    return _generate(
+        args,
+        "loop-grasps",
+        objects=args.objects,
+        method=args.method,
+        driver=args.driver,
+        weights=weights,
+        top=args.top,
+        points=args.points,
+    )
 
 
 def _seg(args: argparse.Namespace) -> int:
@@ -242,6 +277,52 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "robotiq-2f140 (the real robot's, 14 cm; a network trained on it plans for it)",
     )
     p.set_defaults(func=_grasps)
+    p = _dataset_parser(
+        sub,
+        "loop-grasps",
+        "grasp-network data on the closed loop's own phases: its grids and the network's "
+        "top grasps, labelled (on-policy, DAgger)",
+        scenes=300,
+        shard_size=5,
+        max_objects=False,
+    )
+    p.add_argument(
+        "--objects", type=int_at_least(1), default=5, help="objects per scene (default 5)"
+    )
+    p.add_argument(
+        "--method",
+        choices=("heapgrasp", "no-vp", "vgn"),
+        default="heapgrasp",
+        help="whose views carve the grids (vgn: the TSDF network's data); default heapgrasp",
+    )
+    p.add_argument(
+        "--driver",
+        choices=("network", "default"),
+        default="network",
+        help="who executes the grasps: the grasp network (DAgger; default) or the "
+        "method's default planner",
+    )
+    p.add_argument(
+        "--weights",
+        type=Path,
+        default=None,
+        metavar="ONNX",
+        help="the grasp network ranked and driven (default: the one that ships for the "
+        "method's grid)",
+    )
+    p.add_argument(
+        "--top",
+        type=int_at_least(1),
+        default=8,
+        help="the network's best candidates labelled per phase (default 8)",
+    )
+    p.add_argument(
+        "--points",
+        type=int_at_least(0),
+        default=300,
+        help="VGN's surface points labelled per phase (default 300)",
+    )
+    p.set_defaults(func=_loop_grasps)
     p = _dataset_parser(
         sub,
         "seg",

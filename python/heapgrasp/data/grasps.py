@@ -54,6 +54,7 @@ orientation ``x, y, z, w`` in the world's (= the grid's) axes), ``grasp_width``
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Literal
@@ -72,11 +73,13 @@ __all__ = [
     "Scene",
     "draw_scene",
     "generate",
+    "grasp_records",
     "grid_surface",
     "observed_surface",
     "read_manifest",
     "scene_sample",
     "shard_samples",
+    "surface_grasps",
     "write_shard",
 ]
 
@@ -289,60 +292,106 @@ def scene_sample(config: GraspDataConfig, index: int, library: Any = None) -> di
             pipeline = sim_pipeline(depth, world, seed=seed, grasp_planner=recorder)
             pipeline.plan()
         frame = pipeline.frame
-        hand = gripper_named(config.gripper)
-        grasps = _label(world, rng, config, recorder.grid, frame)
-    # VGN's grasp origin, the centre of the palm's face: in front of the surface grasped
-    palm = grasps["position"] + grasps["pose"][:, :3, 2] * hand.palm_front
-    idx = frame.index(palm)
-    inside = ((idx >= 0) & (idx < frame.resolution)).all(axis=1)
-    label = grasps["label"]
-    width = np.where(label == 1, grasps["width"], hand.max_opening)
-    positives = np.flatnonzero(inside & (label == 1))
-    if len(positives) == 0:
+        grasps = surface_grasps(
+            world,
+            rng,
+            recorder.grid,
+            config.input,
+            frame,
+            points=config.points,
+            yaws=config.yaws,
+            gripper=config.gripper,
+        )
+    record = grasp_records(grasps, frame, gripper_named(config.gripper), rng, balance=True)
+    if record is None:
         return None
-    negatives = np.flatnonzero(inside & (label == 0))
-    n_neg = min(len(negatives), len(positives))
-    keep = np.sort(np.concatenate([positives, rng.choice(negatives, n_neg, replace=False)]))
     return {
         config.input: recorder.grid,
         "origin": np.asarray(frame.origin, dtype=np.float64),
         "voxel_size": np.float64(frame.voxel_size),
-        "grasp_voxel": idx[keep],
-        "grasp_position": palm[keep].astype(np.float32),
-        "grasp_quat": grasps["quat"][keep].astype(np.float32),
-        "grasp_width": width[keep].astype(np.float32),
-        "grasp_label": label[keep].astype(np.uint8),
+        **record,
         "scene_seed": np.int64(scene.world_seed),
         "scene_index": np.int64(index),
         "k": np.int64(scene.k if config.input == "occupancy" else -1),
     }
 
 
-def _label(
+def grasp_records(
+    grasps: Mapping[str, Any],
+    frame: Any,
+    hand: Any,
+    rng: np.random.Generator | None,
+    *,
+    balance: bool,
+) -> dict[str, Any] | None:
+    """A sample's per-grasp arrays (``grasp_voxel``, ``grasp_position``, ``grasp_quat``,
+    ``grasp_width``, ``grasp_label``) from labelled TCP poses (``pose`` ``(N, 4, 4)``,
+    ``quat``, ``width``, ``label``, as :func:`heapgrasp.sim.grasp_labels.label_samples`
+    returns them), for ``hand`` (a
+    :class:`~heapgrasp.geometry.gripper.GripperGeometry`).
+
+    Each grasp is held at VGN's grasp origin, the centre of the palm's face (in front of
+    the surface grasped); one whose origin lies outside ``frame``'s grid is dropped. A
+    failure's width is the widest opening. ``balance``: every positive and as many
+    negatives drawn from ``rng`` (all where there are fewer), and None when there is no
+    positive; else every grasp in the grid, and None when there is none."""
+    pose = np.asarray(grasps["pose"], dtype=np.float64).reshape(-1, 4, 4)
+    palm = pose[:, :3, 3] + pose[:, :3, 2] * hand.palm_front
+    idx = frame.index(palm)
+    inside = ((idx >= 0) & (idx < frame.resolution)).all(axis=1)
+    label = np.asarray(grasps["label"], dtype=np.uint8)
+    width = np.where(label == 1, np.asarray(grasps["width"]), hand.max_opening)
+    if balance:
+        positives = np.flatnonzero(inside & (label == 1))
+        if len(positives) == 0:
+            return None
+        negatives = np.flatnonzero(inside & (label == 0))
+        n_neg = min(len(negatives), len(positives))
+        assert rng is not None, "balancing draws negatives"
+        keep = np.sort(np.concatenate([positives, rng.choice(negatives, n_neg, replace=False)]))
+    else:
+        keep = np.flatnonzero(inside)
+        if len(keep) == 0:
+            return None
+    return {
+        "grasp_voxel": idx[keep],
+        "grasp_position": palm[keep].astype(np.float32),
+        "grasp_quat": np.asarray(grasps["quat"])[keep].astype(np.float32),
+        "grasp_width": width[keep].astype(np.float32),
+        "grasp_label": label[keep].astype(np.uint8),
+    }
+
+
+def surface_grasps(
     world: Any,
     rng: np.random.Generator,
-    config: GraspDataConfig,
     grid: F32,
+    input_kind: str,
     frame: Any,
+    *,
+    points: int,
+    yaws: int,
+    gripper: str,
 ) -> dict[str, Any]:
-    """VGN's grasps of the scene at ``config.points`` points of the surface ``grid``
-    shows (:func:`observed_surface`), labelled on the exact geometry and reduced to one
-    per point: ``position`` ``(N, 3)``, ``quat`` ``(N, 4)`` (x, y, z, w), ``width``
-    ``(N,)`` (the widest opening for a failure), ``label`` ``(N,)`` (1 success, 0
-    failure)."""
+    """VGN's grasps of the scene at ``points`` points of the surface ``grid`` shows
+    (:func:`observed_surface`), ``yaws`` yaws each for the hand named ``gripper``,
+    labelled on ``world``'s exact geometry and reduced to one per point, as
+    :func:`heapgrasp.sim.grasp_labels.label_samples` returns them: ``pose`` ``(N, 4,
+    4)`` (TCP), ``quat`` ``(N, 4)`` (x, y, z, w), ``width`` ``(N,)`` (the widest opening
+    for a failure), ``label`` ``(N,)`` (1 success, 0 failure), …"""
     import dataclasses
 
     from heapgrasp.geometry.gripper import PANDA_HAND, gripper_named
     from heapgrasp.sim import grasp_labels
 
-    gripper = gripper_named(config.gripper)
-    points, normals = observed_surface(grid, config.input, frame, rng, config.points)
+    hand = gripper_named(gripper)
+    where, normals = observed_surface(grid, input_kind, frame, rng, points)
     samples = grasp_labels.grasps_at(
-        points, normals, np.full(len(points), -1, np.int64), rng, config.yaws, gripper=gripper
+        where, normals, np.full(len(where), -1, np.int64), rng, yaws, gripper=hand
     )
     # The Panda is labelled with its convex collision meshes; another hand with its boxes.
-    hand = None if gripper == PANDA_HAND else dataclasses.asdict(gripper)
-    return dict(grasp_labels.label_samples(world, samples, hand=hand))
+    parts = None if hand == PANDA_HAND else dataclasses.asdict(hand)
+    return dict(grasp_labels.label_samples(world, samples, hand=parts))
 
 
 MIN_HEIGHT = 0.005

@@ -42,9 +42,10 @@ and a robot; every stage can also be passed in (any object satisfying its protoc
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -286,6 +287,23 @@ class Pipeline:
         if self.observer is not None:
             self.observer.candidates(cands)
         return cands
+
+    @contextlib.contextmanager
+    def planning_as(
+        self, config: RunConfig, planner: GraspPlanner, critic: GraspCritic | None
+    ) -> Iterator[None]:
+        """Within the block, :meth:`grasp_candidates` plans as ``config``'s grasp planner
+        and critic would (``planner``, ``critic``) on the grid as it stands, with no
+        observer told; the pipeline's own are restored after. For measuring other
+        planners on the loop's own grids (``heapgrasp bench topk``, ``heapgrasp data
+        loop-grasps``)."""
+        saved = (self.config, self.grasp_planner, self.critic, self.observer)
+        self.config, self.grasp_planner, self.critic = config, planner, critic
+        self.observer = None
+        try:
+            yield
+        finally:
+            self.config, self.grasp_planner, self.critic, self.observer = saved
 
     def record_outcome(self, grasp: Grasp, outcome: GraspOutcome | str) -> None:
         """Remembers a failed grasp (its candidates are dropped by
