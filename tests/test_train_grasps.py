@@ -349,6 +349,53 @@ def test_resume_continues_exactly(tmp_path: Path, root: Path) -> None:
     assert _same_weights(extended.net, three.net) and len(extended.history) == 3
 
 
+def test_init_starts_from_given_weights_and_refuses_others(tmp_path: Path, root: Path) -> None:
+    """--init (a DAgger round): the run starts from the file's weights (at a zero
+    learning rate it ends with them), its digest is part of what a resume must match,
+    and weights of another size or grid are refused naming the file."""
+    tr, va = load_grasp_dataset(root / "train"), load_grasp_dataset(root / "val")
+    small = {"channels": (2, 2, 2), "head_kernel": 3, "batch_size": 2}
+    first = train(
+        GraspTrainConfig(epochs=1, seed=3, lr=1e-2, **small),
+        tr,
+        va,
+        tmp_path / "a",
+        log=None,
+        progress=False,
+    )
+    start = tmp_path / "a" / "best.safetensors"
+    from heapgrasp.nets.train_grasps import save_grasp_network
+
+    weights, _ = save_grasp_network(
+        first.net, tmp_path / "start.safetensors", {"input_kind": "occupancy"}
+    )
+    still = GraspTrainConfig(epochs=1, seed=9, lr=1e-12, **small)
+    tuned = train(still, tr, va, tmp_path / "b", init=weights, progress=False, log=None)
+    sa, sb = first.net.state_dict(), tuned.net.state_dict()
+    assert all(torch.allclose(sa[k], sb[k], atol=1e-6) for k in sa)
+    fresh = train(still, tr, va, tmp_path / "c", progress=False, log=None)
+    assert not _same_weights(fresh.net, tuned.net)
+    with pytest.raises(TrainSetupError, match=r"config\.init"):
+        train(still, tr, va, tmp_path / "b", resume=True, progress=False, log=None)
+    wider = GraspTrainConfig(epochs=1, seed=9, lr=1e-3, channels=(3, 3, 3), batch_size=2)
+    with pytest.raises(TrainSetupError, match=r"start.safetensors: its network is not of the size"):
+        train(wider, tr, va, tmp_path / "d", init=weights, progress=False, log=None)
+    (tmp_path / "start.json").write_text(json.dumps({"input_kind": "tsdf"}))
+    with pytest.raises(TrainSetupError, match=r"a network of 'tsdf' grids"):
+        train(still, tr, va, tmp_path / "e", init=weights, progress=False, log=None)
+    with pytest.raises(TrainSetupError, match=r"--init: .*missing.safetensors"):
+        train(
+            still,
+            tr,
+            va,
+            tmp_path / "f",
+            init=tmp_path / "missing.safetensors",
+            progress=False,
+            log=None,
+        )
+    assert start.exists()
+
+
 def test_train_grasps_command_writes_a_network_the_planner_runs(tmp_path: Path, root: Path) -> None:
     """One epoch: checkpoint, CSV, plot, weights and card, metrics of val and test, and
     an ONNX file NetworkGraspPlanner loads and that gives PyTorch's outputs."""

@@ -287,6 +287,7 @@ def _grasps(args: argparse.Namespace) -> int:
             args.out,
             device=device,
             resume=args.resume,
+            init=args.init,
             progress=not args.no_progress,
         )
     except (GraspDataError, TrainSetupError, ValueError) as exc:
@@ -300,6 +301,7 @@ def _grasps(args: argparse.Namespace) -> int:
         test_data=test_data,
         device=device,
         command=_command(args),
+        init=args.init,
     )
     print((Path(args.out) / "metrics.json").read_text().rstrip())
     print("wrote " + ", ".join(str(p) for p in written))
@@ -456,7 +458,9 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
             "  heapgrasp train grasps runs/grasps --out runs/grasp-net --epochs 20 "
             "--resume   # continue after a stop\n"
             "  heapgrasp train grasps runs/grasps --out runs/grasp-net --epochs 30 "
-            "--resume   # train a finished run 10 epochs more"
+            "--resume   # train a finished run 10 epochs more\n"
+            "  heapgrasp train grasps runs/grasps runs/loop-grasps --out runs/dagger-1 "
+            "--init models/grasp-network/grasp_network.safetensors   # a DAgger round"
         ),
     )
     g.add_argument(
@@ -505,6 +509,15 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
         default=3,
         help="kernel of the last decoder convolution and the three heads (default 3; "
         "VGN's 5 costs about 4x more at full resolution, where most of the time goes)",
+    )
+    g.add_argument(
+        "--init",
+        type=Path,
+        default=None,
+        metavar="SAFETENSORS",
+        help="start from these weights instead of fresh ones (fine-tuning, e.g. a DAgger "
+        "round on 'heapgrasp data loop-grasps': models/grasp-network/"
+        "grasp_network.safetensors); they must be of the size asked",
     )
     _add_run_options(g, seed_help="initial weights, order, augmentation (0)")
     _add_cpu_options(g, "; 1 is faster while other jobs share the CPU")

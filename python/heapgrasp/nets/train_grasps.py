@@ -471,6 +471,7 @@ def train(
     *,
     device: str = "cpu",
     resume: bool = False,
+    init: str | os.PathLike[str] | None = None,
     progress: bool = True,
     log: Callable[[str], None] | None = print,
 ) -> GraspTrainResult:
@@ -493,6 +494,11 @@ def train(
         Continue from ``out``'s checkpoint (TrainSetupError when there is none, or when
         it was made with other settings or data); without it an existing checkpoint is
         refused.
+    init : path-like or None
+        Start from these weights (a ``grasp_network.safetensors`` of this size and grid:
+        fine-tuning, e.g. a DAgger round on ``heapgrasp data loop-grasps``) instead of
+        fresh ones; TrainSetupError when they are not. Their digest is part of what a
+        resumed checkpoint must match.
     progress : bool
         A tqdm progress bar per epoch (on a terminal).
     log : callable or None
@@ -509,14 +515,18 @@ def train(
     out_dir = Path(out)
     torch.manual_seed(config.seed)
     net = config.network(train_data.resolution)
-    # Width starts at the positives' mean opening, quality at their share: fewer steps
-    # spent learning offsets (a resume loads the trained values).
-    pos = train_data.label > 0
-    share = min(max(float(pos.mean()), 1e-3), 1.0 - 1e-3)
-    with torch.no_grad():
-        assert net.quality_head.bias is not None and net.width_head.bias is not None
-        net.quality_head.bias.fill_(math.log(share / (1.0 - share)))
-        net.width_head.bias.fill_(float(train_data.width[pos].mean()) if pos.any() else 0.0)
+    start_from = None
+    if init is not None:
+        start_from = _initial_weights(net, init, config.input_kind)
+    else:
+        # Width starts at the positives' mean opening, quality at their share: fewer
+        # steps spent learning offsets (a resume loads the trained values).
+        pos = train_data.label > 0
+        share = min(max(float(pos.mean()), 1e-3), 1.0 - 1e-3)
+        with torch.no_grad():
+            assert net.quality_head.bias is not None and net.width_head.bias is not None
+            net.quality_head.bias.fill_(math.log(share / (1.0 - share)))
+            net.width_head.bias.fill_(float(train_data.width[pos].mean()) if pos.any() else 0.0)
     dev = torch.device(device)
     net.to(dev)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
@@ -524,6 +534,7 @@ def train(
     # (seed, epoch) alone, so a resumed run may also go on for more epochs than asked
     # first: the epochs are not part of what a checkpoint must match.
     settings = {k: v for k, v in config.as_dict().items() if k != "epochs"}
+    settings["init"] = start_from  # None (fresh weights) matches checkpoints made before
     state = start_run(
         out_dir,
         net,
@@ -599,6 +610,43 @@ def train(
     return GraspTrainResult(net=net, best_epoch=best_epoch, history=history, seconds=seconds)
 
 
+def _initial_weights(net: GraspNet, path: str | os.PathLike[str], input_kind: str) -> str:
+    """Loads ``path``'s weights into ``net`` (TrainSetupError naming the file unless they
+    are a grasp network of ``net``'s size, for ``input_kind`` grids where its card says);
+    returns the file's digest."""
+    import json
+
+    p = Path(path)
+    try:
+        start = load_grasp_network(p)
+    except FileNotFoundError as exc:
+        raise TrainSetupError(f"--init: {exc}") from None
+    card = p.with_suffix(".json")
+    if card.is_file():
+        try:
+            kind = json.loads(card.read_text()).get("input_kind")
+        except (OSError, ValueError):
+            kind = None
+        if isinstance(kind, str) and kind != input_kind:
+            raise TrainSetupError(
+                f"--init {p}: a network of {kind!r} grids ({card}); these data are {input_kind!r}"
+            )
+    try:
+        net.load_state_dict(start.state_dict(), strict=True)
+    except RuntimeError:
+        raise TrainSetupError(
+            f"--init {p}: its network is not of the size asked (--channels, "
+            f"--head-kernel, the grid's resolution): {start.hparams()}"
+        ) from None
+    return _sha256(p)[:16]
+
+
+def _sha256(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
 # --------------------------------------------------------------------------- outputs
 
 
@@ -641,6 +689,7 @@ def write_outputs(
     test_data: GraspDataset | None,
     device: str = "cpu",
     command: str = "",
+    init: str | os.PathLike[str] | None = None,
 ) -> list[Path]:
     """The trained network's files in ``out``: ``metrics.json`` (the best epoch's
     :func:`evaluate` on the validation and, where given, the test data),
@@ -682,6 +731,9 @@ def write_outputs(
             "seconds": round(result.seconds, 1),
             "seconds_per_epoch": round(result.seconds / max(len(result.history), 1), 2),
             "selection": "best epoch by validation loss",
+            "init": None
+            if init is None
+            else {"path": str(init), "sha256": _sha256(Path(init))[:16]},
             "losses": "BCE(quality) + label * (rotation + 0.01 * width in voxels^2), VGN's",
             "augmentation": (
                 f"quarter turns about z, x-y shifts up to {config.max_shift} voxels"
