@@ -124,6 +124,23 @@ def test_precision_of_the_top_grasps_is_counted(
     assert summary["phases"] == sum(len(s["k"]) for s in shards)
 
 
+def test_scenes_draw_the_datasets_objects_alone() -> None:
+    """``val`` scenes hold only the train objects held out for validation, ``train`` ones
+    none of them (the library's train split holds both)."""
+    from heapgrasp.data.loop_grasps import draw_scene
+    from heapgrasp.data.scenes import object_split
+    from heapgrasp.sim.build import object_library
+
+    library = object_library(CONFIG.run_config("mixed", "pile"))
+    for split in ("train", "val", "test"):
+        config = LoopGraspDataConfig(split=split)
+        names = {m.name for i in range(12) for m in draw_scene(config, i, library)[0].models}
+        assert names and {
+            object_split(n, m.split) for m in library.models() for n in [m.name] if n in names
+        } == {split}
+        assert names <= set(config.object_names())
+
+
 def test_bad_settings_are_named(tmp_path: Path) -> None:
     for kwargs, message in (
         ({"driver": "human"}, "driver must be one of network, default"),

@@ -9,7 +9,8 @@ grids is 71 %, though its offline average precision is 0.90). This dataset holds
 grids and grasps. For every scene (seed from the dataset's root seed and the scene's
 index, so a shard re-run is identical):
 
-1. a pile or packed scene (probability 1/2 each) of ``objects`` objects of the split, in
+1. a pile or packed scene (probability 1/2 each) of ``objects`` objects of the dataset's
+   split (:func:`heapgrasp.data.scenes.split_models`: ``val`` holds out train objects), in
    a random scene group (transparent, opaque, specular or mixed), runs the
    clutter-removal protocol as ``heapgrasp run --method METHOD`` does, driven by
    ``driver``: ``network`` (the grasp network of ``weights`` executes its own best
@@ -37,7 +38,7 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -56,6 +57,8 @@ __all__ = [
     "DRIVERS",
     "LOOP_PHASE",
     "LoopGraspDataConfig",
+    "LoopScene",
+    "draw_scene",
     "phase_sample",
     "scene_samples",
     "shard_samples",
@@ -155,7 +158,8 @@ class LoopGraspDataConfig(ShardedConfig):
             {
                 "method": self.method,
                 "objects": self.objects,
-                "split": self.split,
+                # the library's split; the dataset's objects are drawn by scene_samples
+                "split": "test" if self.split == "test" else "train",
                 "category": category,
                 "layout": layout,
             },
@@ -250,6 +254,34 @@ def phase_sample(
     }
 
 
+@dataclass(frozen=True)
+class LoopScene:
+    """What scene ``index`` of a dataset is (:func:`draw_scene`)."""
+
+    seed: int
+    """The world's and the pipeline's seed (the samples' ``scene_seed``)."""
+    category: str
+    layout: Literal["pile", "packed"]
+    models: tuple[Any, ...]
+    """The objects, of the dataset's split."""
+
+
+def draw_scene(
+    config: LoopGraspDataConfig, index: int, library: Any
+) -> tuple[LoopScene, np.random.Generator]:
+    """Scene ``index`` and the generator its labels draw from next."""
+    from heapgrasp.data.scenes import split_models
+
+    rng = np.random.default_rng(np.random.SeedSequence([config.root_seed, index]))
+    seed = int(rng.integers(2**31))
+    category = CATEGORIES[int(rng.integers(len(CATEGORIES)))]
+    layout: Literal["pile", "packed"] = "pile" if rng.random() < 0.5 else "packed"
+    pool = split_models(library, config.split)
+    count = min(config.objects, len(pool))
+    models = tuple(pool[i] for i in rng.choice(len(pool), size=count, replace=False))
+    return LoopScene(seed, category, layout, models), rng
+
+
 def scene_samples(
     config: LoopGraspDataConfig, index: int, library: Any = None
 ) -> list[dict[str, Any]]:
@@ -257,20 +289,26 @@ def scene_samples(
     from heapgrasp.geometry.gripper import PANDA_HAND
     from heapgrasp.loop.phase import make_grasp_planner
     from heapgrasp.loop.protocol import PlanResult, run_clutter_removal
-    from heapgrasp.sim.build import object_library, scene_world, sim_pipeline
+    from heapgrasp.sim.build import object_library, sim_pipeline
+    from heapgrasp.sim.optics import DepthModel
+    from heapgrasp.sim.world import SimWorld, WorldConfig
 
-    rng = np.random.default_rng(np.random.SeedSequence([config.root_seed, index]))
-    seed = int(rng.integers(2**31))
-    category = CATEGORIES[int(rng.integers(len(CATEGORIES)))]
-    layout = "pile" if rng.random() < 0.5 else "packed"
+    if library is None:
+        library = object_library(config.run_config("mixed", "pile"))
+    scene, rng = draw_scene(config, index, library)
+    seed, category, layout, models = scene.seed, scene.category, scene.layout, scene.models
     base = config.run_config(category, layout)
     rank_config = config.ranker_config(base)
     planner = make_grasp_planner(rank_config, PANDA_HAND)
     drive = rank_config if config.driver == "network" else base
-    if library is None:
-        library = object_library(base)
     samples: list[dict[str, Any]] = []
-    with scene_world(base, seed, category, library=library) as world:
+    with SimWorld(
+        library,
+        config=WorldConfig(cube_size=base.cube_size),
+        depth_model=DepthModel(ideal=base.ideal_depth),
+        seed=seed,
+    ) as world:
+        world.reset(layout=layout, category=category, seed=seed, models=models)
         pipeline = sim_pipeline(
             drive,
             world,
