@@ -3,7 +3,7 @@
 //!
 //! Every HEAPGrasp view lies within θ_max = π/5 of the vertical (Table I), so the visual
 //! hull of eq. 10 over-estimates heights, and the Python package trims the hull's roofs
-//! before grasp planning (`heapgrasp.roofs.trim_roofs`). Trimming can also cut real
+//! before grasp planning (`heapgrasp.perception.roofs.trim_roofs`). Trimming can also cut real
 //! parts narrower than its disc (a bottle's neck, a bowl's rim). The silhouettes cannot
 //! say which hull voxels are real, but every pixel of a mask is a ray that hits an
 //! object. A roof is explained away, because the rays through it go on to hit the
@@ -24,7 +24,7 @@
 //! - Each column is raised back to its highest needed voxel: every cut voxel at or
 //!   below it is restored.
 //!
-//! This is the NumPy implementation of `heapgrasp.roofs.keep_silhouettes` (kept as the
+//! This is a port of the NumPy implementation of `keep_silhouettes` (kept as the
 //! test reference `tests/reference_roofs.py`) with the same floating-point operations
 //! per voxel. Only the camera transform (here `Rᵀ`, `-Rᵀt` of the rigid pose, there a
 //! LAPACK inverse and a BLAS product) may differ in the last bit, which moves a box
