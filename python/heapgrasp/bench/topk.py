@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from heapgrasp.bench.argtypes import comma_choices, int_at_least
 from heapgrasp.loop.config import ConfigError, RunConfig
@@ -180,7 +181,7 @@ def run_scene(config: TopKConfig, index: int) -> dict[str, Any]:
 BINS = (0.0, 0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95, 1.0)
 
 
-def reliability(scores: Sequence[float], labels: Sequence[bool]) -> dict[str, Any]:
+def reliability(scores: npt.ArrayLike, labels: npt.ArrayLike) -> dict[str, Any]:
     """Predicted against measured success of labelled grasps: per score bin of
     :data:`BINS` the grasps, their mean score and the share that held, and the expected
     calibration error (the grasps' weighted mean of |mean score − share held| over the
