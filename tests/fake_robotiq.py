@@ -95,8 +95,13 @@ class FakeRobotiq:
             _close(c)
         if self._server is not None:
             _close(self._server)
-        for t in self._threads:
+        for t in list(self._threads):
             t.join(timeout=2.0)
+        # a connection accepted while closing: its thread closed it, or this does
+        with self._lock:
+            late = [c for c in self._clients if c not in clients]
+        for c in late:
+            _close(c)
 
     def __enter__(self) -> FakeRobotiq:
         return self.start()
@@ -121,6 +126,12 @@ class FakeRobotiq:
             self._threads.append(t)
 
     def _serve(self, conn: socket.socket) -> None:
+        try:
+            self._serve_lines(conn)
+        finally:  # every accepted socket is closed when its thread ends
+            _close(conn)
+
+    def _serve_lines(self, conn: socket.socket) -> None:
         buf = b""
         while not self._stop.is_set():
             try:
