@@ -16,10 +16,10 @@ import statistics
 import time
 from collections.abc import Callable
 
-from heapgrasp.loop.viewsphere import ViewsphereGrasps
-from heapgrasp.planning.viewsphere_policies import pose_key
-from heapgrasp.sim.viewsphere_objects import stand_in
-from heapgrasp.sim.viewsphere_world import ViewsphereWorld
+from heapgrasp.viewsphere.grasps import ViewsphereGrasps
+from heapgrasp.viewsphere.objects import stand_in
+from heapgrasp.viewsphere.policies import pose_key
+from heapgrasp.viewsphere.world import ViewsphereWorld
 
 
 def _ms(fn: Callable[[], object], repeat: int) -> float:

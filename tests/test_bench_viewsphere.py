@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from heapgrasp.bench.viewsphere import POLICIES, classify, summarize
 from heapgrasp.cli import main
+from heapgrasp.viewsphere.episode import POLICIES
+from heapgrasp.viewsphere.report import classify, summarize
 
 
 @pytest.fixture(autouse=True)
@@ -215,8 +216,8 @@ def test_found_grasps_are_executed_with_the_simulated_hand(tmp_path: Path) -> No
 
 def test_the_sensor_model_drops_a_transparent_objects_depth() -> None:
     from heapgrasp.sim.optics import Category
-    from heapgrasp.sim.viewsphere_objects import stand_in
-    from heapgrasp.sim.viewsphere_world import ViewsphereWorld
+    from heapgrasp.viewsphere.objects import stand_in
+    from heapgrasp.viewsphere.world import ViewsphereWorld
 
     meshes = stand_in("005_tomato_soup_can")
     ideal = ViewsphereWorld(meshes)
@@ -239,7 +240,7 @@ def test_ray_without_ray_is_a_clear_message(
 
 
 def _policy_file(path: Path, model: str) -> Path:
-    from heapgrasp.planning.viewsphere_learned import N_FEATURES, policy_onnx
+    from heapgrasp.viewsphere.learned import N_FEATURES, policy_onnx
 
     w, b = np.zeros((8, N_FEATURES)), np.arange(8, dtype=np.float64)  # NW first
     path.write_bytes(policy_onnx([(w, b)], hparams={"model": model}, provenance={}))

@@ -186,9 +186,9 @@ def _clouds() -> list[np.ndarray]:
         a = rng.uniform(0, 2 * math.pi)
         turn = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
         out.append(pts @ turn.T + rng.normal(0.0, 0.0008, pts.shape))
-    from heapgrasp.geometry.viewsphere import START
-    from heapgrasp.sim.viewsphere_objects import stand_in
-    from heapgrasp.sim.viewsphere_world import ViewsphereWorld
+    from heapgrasp.viewsphere.objects import stand_in
+    from heapgrasp.viewsphere.sphere import START
+    from heapgrasp.viewsphere.world import ViewsphereWorld
 
     world = ViewsphereWorld(stand_in("005_tomato_soup_can"))
     views = [START] + [world.sphere.move(START, d)[1] for d in range(0, 8, 2)]

@@ -1,4 +1,4 @@
-"""Seed 001's discrete viewsphere (geometry.viewsphere): steps, fallbacks, the polar limit."""
+"""Seed 001's discrete viewsphere (viewsphere.sphere): steps, fallbacks, the polar limit."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from heapgrasp.geometry.viewsphere import (
+from heapgrasp.viewsphere.sphere import (
     DIRECTIONS,
     START,
     DiscreteViewsphere,

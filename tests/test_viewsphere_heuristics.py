@@ -1,4 +1,4 @@
-"""Seed 001's heuristic policies (planning.viewsphere_heuristics) on synthetic states."""
+"""Seed 001's heuristic policies (viewsphere.heuristics) on synthetic states."""
 
 from __future__ import annotations
 
@@ -7,21 +7,21 @@ import math
 import numpy as np
 import pytest
 from heapgrasp import grasp_region, surfel_visibility
-from heapgrasp.geometry.viewsphere import DIRECTIONS, DiscreteViewsphere, SpherePose
-from heapgrasp.loop.viewsphere import SEED001_CAMERA
 from heapgrasp.perception.clouds import backproject, project
-from heapgrasp.planning.viewsphere_heuristics import (
+from heapgrasp.viewsphere.grasps import SEED001_CAMERA
+from heapgrasp.viewsphere.heuristics import (
     Heuristic2D,
     Heuristic3D,
     InformationGain,
     ViewsphereScorer,
     information_gain_viewpoints,
 )
-from heapgrasp.planning.viewsphere_policies import (
+from heapgrasp.viewsphere.policies import (
     ViewState,
     run_episode,
     run_viewpoint_episode,
 )
+from heapgrasp.viewsphere.sphere import DIRECTIONS, DiscreteViewsphere, SpherePose
 
 SPHERE = DiscreteViewsphere()
 SCORER = ViewsphereScorer(SPHERE, SEED001_CAMERA)
@@ -199,7 +199,7 @@ def test_a_stepping_episode_travels_a_step_per_move():
 # ----------------------------------------------------------- HEAPGrasp's view scoring
 def _box_world():
     import trimesh
-    from heapgrasp.sim.viewsphere_world import ViewsphereWorld
+    from heapgrasp.viewsphere.world import ViewsphereWorld
 
     box = trimesh.creation.box(extents=(0.04, 0.16, 0.10))
     box.apply_translation((0.0, 0.0, 0.05))
@@ -207,7 +207,7 @@ def _box_world():
 
 
 def test_heapgrasp_views_carve_silhouettes_and_the_oracle_scores_them():
-    from heapgrasp.planning.viewsphere_heapgrasp import HeapgraspViewPolicy
+    from heapgrasp.viewsphere.heapgrasp_views import HeapgraspViewPolicy
 
     world = _box_world()
     policy = HeapgraspViewPolicy(
@@ -238,7 +238,7 @@ def test_heapgrasp_views_carve_silhouettes_and_the_oracle_scores_them():
 def test_the_view_network_scores_the_nearest_candidates():
     from heapgrasp.inference import shipped_weights
     from heapgrasp.planning.view_network import NetworkViewScorer
-    from heapgrasp.planning.viewsphere_heapgrasp import HeapgraspViewPolicy
+    from heapgrasp.viewsphere.heapgrasp_views import HeapgraspViewPolicy
 
     path = shipped_weights("view-network")
     assert path is not None, "the view network ships with the package"

@@ -1,5 +1,5 @@
 """Seed 001's learned viewsphere policies: the state, policy files, the paths dataset and
-the trainers (planning.viewsphere_learned, data.viewsphere_paths, data.viewsphere_train)."""
+the trainers (viewsphere.learned, viewsphere.data, viewsphere.training)."""
 
 from __future__ import annotations
 
@@ -11,21 +11,21 @@ from typing import Any
 import numpy as np
 import pytest
 from heapgrasp.data import shards
-from heapgrasp.data import viewsphere_paths as vp
 from heapgrasp.data.shards import generate
-from heapgrasp.data.viewsphere_train import DqnConfig, fold_linear, train_dqn, train_linear
 from heapgrasp.geometry.errors import WeightsError
-from heapgrasp.geometry.viewsphere import DIRECTIONS, DiscreteViewsphere, SpherePose
 from heapgrasp.inference import OnnxNetwork
-from heapgrasp.loop.viewsphere import SEED001_CAMERA
-from heapgrasp.planning.viewsphere_heuristics import ViewsphereScorer
-from heapgrasp.planning.viewsphere_learned import (
+from heapgrasp.viewsphere import data as vp
+from heapgrasp.viewsphere.grasps import SEED001_CAMERA
+from heapgrasp.viewsphere.heuristics import ViewsphereScorer
+from heapgrasp.viewsphere.learned import (
     N_FEATURES,
     LearnedPolicy,
     policy_onnx,
     state_features,
 )
-from heapgrasp.planning.viewsphere_policies import ViewState
+from heapgrasp.viewsphere.policies import ViewState
+from heapgrasp.viewsphere.sphere import DIRECTIONS, DiscreteViewsphere, SpherePose
+from heapgrasp.viewsphere.training import DqnConfig, fold_linear, train_dqn, train_linear
 
 SPHERE = DiscreteViewsphere()
 SCORER = ViewsphereScorer(SPHERE, SEED001_CAMERA)

@@ -1,12 +1,12 @@
-"""Seed 001's stand-in objects (sim.viewsphere_objects): sizes, closed meshes, rest."""
+"""Seed 001's stand-in objects (viewsphere.objects): sizes, closed meshes, rest."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import trimesh
-from heapgrasp.sim.viewsphere_objects import TEST_OBJECTS, TRAIN_OBJECTS, stand_in
-from heapgrasp.sim.viewsphere_protocol import REST_POSES
+from heapgrasp.viewsphere.objects import TEST_OBJECTS, TRAIN_OBJECTS, stand_in
+from heapgrasp.viewsphere.protocol import REST_POSES
 
 #: Published sizes (m), sorted; the drill and the airplane are composites (not listed).
 SIZES = {
@@ -62,7 +62,7 @@ def test_the_pudding_box_stands_on_its_end_as_the_protocols_height_says():
 
 
 def test_benchmark_objects_turn_about_the_vertical_and_check_their_size():
-    from heapgrasp.sim.viewsphere_objects import stand_ins
+    from heapgrasp.viewsphere.objects import stand_ins
 
     (can,) = stand_ins(["005_tomato_soup_can"])
     assert can.yaw_range == REST_POSES["005_tomato_soup_can"].yaw_range

@@ -1,4 +1,4 @@
-"""Seed 001's baseline policies and breadth-first search (planning.viewsphere_policies)."""
+"""Seed 001's baseline policies and breadth-first search (viewsphere.policies)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from heapgrasp.geometry.viewsphere import DIRECTIONS, START, DiscreteViewsphere
-from heapgrasp.planning.viewsphere_policies import (
+from heapgrasp.viewsphere.policies import (
     BrickPolicy,
     RandomPolicy,
     ViewspherePolicy,
@@ -16,6 +15,7 @@ from heapgrasp.planning.viewsphere_policies import (
     pose_key,
     run_episode,
 )
+from heapgrasp.viewsphere.sphere import DIRECTIONS, START, DiscreteViewsphere
 
 SPHERE = DiscreteViewsphere()
 

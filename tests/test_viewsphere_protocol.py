@@ -1,11 +1,11 @@
-"""Seed 001's test protocol (sim.viewsphere_protocol): the yaw lists and resting poses."""
+"""Seed 001's test protocol (viewsphere.protocol): the yaw lists and resting poses."""
 
 from __future__ import annotations
 
 import math
 
 import pytest
-from heapgrasp.sim.viewsphere_protocol import REST_POSES, YAWS_DEG, protocol_yaws
+from heapgrasp.viewsphere.protocol import REST_POSES, YAWS_DEG, protocol_yaws
 
 
 @pytest.mark.parametrize("top", [89, 179, 359])

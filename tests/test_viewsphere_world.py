@@ -1,13 +1,13 @@
-"""Seed 001's world on the renderer (sim.viewsphere_world): views, fusion, a grasp."""
+"""Seed 001's world on the renderer (viewsphere.world): views, fusion, a grasp."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import trimesh
-from heapgrasp.geometry.viewsphere import START
-from heapgrasp.planning.viewsphere_policies import BrickPolicy, breadth_first, run_episode
-from heapgrasp.sim.viewsphere_world import SEED001_CAMERA, ViewsphereWorld
+from heapgrasp.viewsphere.policies import BrickPolicy, breadth_first, run_episode
+from heapgrasp.viewsphere.sphere import START
+from heapgrasp.viewsphere.world import SEED001_CAMERA, ViewsphereWorld
 
 
 def _on_table(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
@@ -50,7 +50,7 @@ def test_a_sphere_wider_than_the_hand_yields_nothing():
 
 
 def test_the_config_checks_its_values_and_round_trips():
-    from heapgrasp.loop.viewsphere import ViewsphereConfig
+    from heapgrasp.viewsphere.grasps import ViewsphereConfig
 
     config = ViewsphereConfig(voxel=0.01, max_steps=4)
     assert ViewsphereConfig.from_dict(config.to_dict()) == config

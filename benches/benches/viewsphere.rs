@@ -1,11 +1,11 @@
 //! Criterion benchmarks of seed 001's cloud and view-scoring kernels
-//! (`heapgrasp_core::clouds`, `heapgrasp_core::visibility`): a 640 × 480 depth view of a
+//! (`heapgrasp_core::viewsphere::clouds`, `heapgrasp_core::viewsphere::visibility`): a 640 × 480 depth view of a
 //! box on a table down-sampled to 7.5 mm voxels, and the 3D heuristic's scoring of 8
 //! next views (1,000 useful points past a box's surfels) and its grasp region.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use heapgrasp_core::clouds::depth_voxels;
-use heapgrasp_core::visibility::{grasp_region, surfel_visibility};
+use heapgrasp_core::viewsphere::clouds::depth_voxels;
+use heapgrasp_core::viewsphere::visibility::{grasp_region, surfel_visibility};
 use heapgrasp_core::{PinholeCamera, Pose};
 
 /// The visible faces of a 6 × 10 × 12 cm box standing on the origin, sampled at 7.5 mm,

@@ -1,7 +1,7 @@
 //! `seen_empty`: which points of seed 001's unexplored region a depth view shows to be
-//! empty (`heapgrasp_core::clouds`).
+//! empty (`heapgrasp_core::viewsphere::clouds`).
 
-use heapgrasp_core::clouds::{self, SeenParams};
+use heapgrasp_core::viewsphere::clouds::{self, SeenParams};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 

@@ -1,7 +1,7 @@
 //! `hand_point_counts`, `first_free_pose`: points inside the hand at grasp poses
-//! (`heapgrasp_core::hand_points`).
+//! (`heapgrasp_core::viewsphere::hand_points`).
 
-use heapgrasp_core::hand_points::{self, PointIndex};
+use heapgrasp_core::viewsphere::hand_points::{self, PointIndex};
 use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyMapping;

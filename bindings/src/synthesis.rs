@@ -1,7 +1,7 @@
-//! Seed 001's grasp synthesis on a point cloud (`heapgrasp_core::synthesis`): normals
+//! Seed 001's grasp synthesis on a point cloud (`heapgrasp_core::viewsphere::synthesis`): normals
 //! and curvature, contact patches, antipodal pairs.
 
-use heapgrasp_core::synthesis::{self, Point};
+use heapgrasp_core::viewsphere::synthesis::{self, Point};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 

@@ -1,7 +1,7 @@
-//! Seed 001's heuristic view scores (`heapgrasp_core::visibility`): the grasp region of
+//! Seed 001's heuristic view scores (`heapgrasp_core::viewsphere::visibility`): the grasp region of
 //! the unexplored points and their visibility past a surfel reconstruction.
 
-use heapgrasp_core::visibility;
+use heapgrasp_core::viewsphere::visibility;
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 

@@ -26,13 +26,11 @@
 pub mod antipodal;
 pub mod camera;
 pub mod carve;
-pub mod clouds;
 pub mod error;
 pub mod filter;
 pub mod grasp_label;
 pub mod grid;
 pub mod gripper;
-pub mod hand_points;
 pub mod nms;
 pub mod occupancy;
 pub mod parallel;
@@ -42,9 +40,8 @@ pub mod raster;
 pub mod roofs;
 mod rounding;
 pub mod score;
-pub mod synthesis;
 pub mod tsdf;
-pub mod visibility;
+pub mod viewsphere;
 
 pub use camera::{poses_from_flat, PinholeCamera, Pose};
 pub use error::{Error, Result};

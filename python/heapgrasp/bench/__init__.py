@@ -15,14 +15,15 @@ its subcommand (and sets ``func``, the function that runs it, as a parser defaul
   few grasps on the grids the closed loop meets, labelled on the true meshes;
 * :mod:`heapgrasp.bench.compare` -- ``heapgrasp bench compare``: two finished runs on
   the same scenes, success rates with intervals and their paired difference;
-* :mod:`heapgrasp.bench.viewsphere` -- ``heapgrasp bench viewsphere``: seed 001's
-  active-vision benchmark (random, brick and BFS policies on the viewsphere);
 * :mod:`heapgrasp.bench.seg` -- ``heapgrasp bench seg``: the segmentation network's CPU
   time per frame, per encoder;
 * :mod:`heapgrasp.bench.paper_tables` -- ``heapgrasp bench noise`` and ``heapgrasp bench
   clutter``: HEAPGrasp's Tables V (mask noise) and IV (clutter) in simulation.
 
-Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`.
+Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`. The viewsphere
+benchmark (``heapgrasp bench viewsphere``) lives with the rest of its system in
+:mod:`heapgrasp.viewsphere`; the command line registers it on the subparsers this
+module's :func:`add_parser` returns.
 """
 
 from __future__ import annotations
@@ -37,7 +38,6 @@ from heapgrasp.bench import (
     seg,
     sim,
     topk,
-    viewsphere,
     world,
 )
 
@@ -46,7 +46,7 @@ __all__ = ["add_parser"]
 
 def add_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
+) -> argparse._SubParsersAction[argparse.ArgumentParser]:
     """Adds the ``bench`` command group and its benchmarks to a CLI.
 
     Parameters
@@ -56,9 +56,9 @@ def add_parser(
 
     Returns
     -------
-    argparse.ArgumentParser
-        The ``bench`` parser; further benchmarks (``bench score``, ...) register on its
-        subparsers the way :func:`heapgrasp.bench.carve.add_parser` does.
+    argparse._SubParsersAction
+        The ``bench`` group's subparsers: further benchmarks (``bench viewsphere``, ...)
+        register on them the way :func:`heapgrasp.bench.carve.add_parser` does.
     """
     p = subparsers.add_parser(
         "bench",
@@ -77,7 +77,6 @@ def add_parser(
     grasp.add_parser(benches)
     topk.add_parser(benches)
     compare.add_parser(benches)
-    viewsphere.add_parser(benches)
     seg.add_parser(benches)
     paper_tables.add_parsers(benches)
-    return p
+    return benches

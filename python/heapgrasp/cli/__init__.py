@@ -49,6 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     from heapgrasp.cli import show as show_cli
     from heapgrasp.cli import sim as sim_cli
     from heapgrasp.cli import train as train_cli
+    from heapgrasp.viewsphere import bench as viewsphere_bench
 
     parser = argparse.ArgumentParser(
         prog="heapgrasp",
@@ -65,7 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run_cli.add_parser(commands)
     show_cli.add_parser(commands)
-    bench.add_parser(commands)
+    benches = bench.add_parser(commands)
+    viewsphere_bench.add_parser(benches)
     sim_cli.add_parser(commands)
     critic_cli.add_parser(commands)
     data_cli.add_parser(commands)

@@ -48,7 +48,7 @@ Rendered RGB images of random scenes and their exact 4-class masks, as ``images/
 Every scene puts a training prism at a random yaw, starts the camera at a random pose
 and explores randomly, three paths of up to five moves per direction; the label is the
 first direction of the shortest path that found a grasp
-(:mod:`heapgrasp.data.viewsphere_paths`).
+(:mod:`heapgrasp.viewsphere.data`).
 
 Shards are written whole or not at all; running the same command again continues where
 it stopped (finished shards are kept) and adding scenes (a larger ``--scenes``) adds
@@ -78,7 +78,7 @@ def _generate(args: argparse.Namespace, dataset: str, **settings: Any) -> int:
     from heapgrasp.data.seg import SegDataConfig
     from heapgrasp.data.shards import ShardFailure, generate
     from heapgrasp.data.views import ViewDataConfig
-    from heapgrasp.data.viewsphere_paths import ViewspherePathsConfig
+    from heapgrasp.viewsphere.data import ViewspherePathsConfig
 
     kinds = {"views": ViewDataConfig, "grasps": GraspDataConfig, "seg": SegDataConfig}
     common = {
@@ -336,8 +336,8 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--size", type=size_arg, default=(240, 320), metavar="WxH", help="(320x240)")
     p.set_defaults(func=_seg)
     from heapgrasp.bench.argtypes import comma_choices
-    from heapgrasp.data.viewsphere_paths import SUPERVISED_OBJECTS
-    from heapgrasp.sim.viewsphere_objects import TRAIN_OBJECTS
+    from heapgrasp.viewsphere.data import SUPERVISED_OBJECTS
+    from heapgrasp.viewsphere.objects import TRAIN_OBJECTS
 
     p = _dataset_parser(
         sub,

@@ -310,7 +310,7 @@ def _grasps(args: argparse.Namespace) -> int:
 
 def _viewsphere_policy(args: argparse.Namespace) -> int:
     """``heapgrasp train viewsphere-policy``."""
-    from heapgrasp.data import viewsphere_train as vt
+    from heapgrasp.viewsphere import training as vt
 
     out = Path(args.out)
     try:
@@ -527,7 +527,7 @@ def _add_grasps(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
 
 def _add_viewsphere_policy(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     from heapgrasp.bench.argtypes import comma_choices
-    from heapgrasp.sim.viewsphere_objects import TRAIN_OBJECTS
+    from heapgrasp.viewsphere.objects import TRAIN_OBJECTS
 
     p = sub.add_parser(
         "viewsphere-policy",

@@ -1,7 +1,7 @@
 """Seed 001's point-cloud perception: fused depth, the table, the unexplored region.
 
 The active-vision benchmark of seed ``001_95c7dd5c6a7c3646.txt`` (§3.2) sees the scene
-with a depth camera on its viewsphere (:mod:`heapgrasp.geometry.viewsphere`):
+with a depth camera on its viewsphere (:mod:`heapgrasp.viewsphere.sphere`):
 
 - each depth image is back-projected to world points (:func:`backproject`; the sensor's
   range 0.10–3.0 m), and the views are fused by concatenating their points and

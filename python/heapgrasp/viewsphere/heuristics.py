@@ -2,7 +2,7 @@
 comparison (§4.2, Algorithms 1 and 2).
 
 Each scores candidate next views by how much of the unexplored region they would show,
-from the fused state (:meth:`~heapgrasp.planning.viewsphere_policies.ViewState.fused`:
+from the fused state (:meth:`~heapgrasp.viewsphere.policies.ViewState.fused`:
 the object's points and the unexplored region's points), assuming optimistically that
 the next view finds no new object points:
 
@@ -20,12 +20,12 @@ the next view finds no new object points:
 - :class:`InformationGain` (§4.2.3, after Arruda et al. 2016): the same visibility count
   over *all* the unexplored points, over the fixed set of 34 viewpoints
   (:func:`information_gain_viewpoints`); the camera flies to the best one. It picks
-  viewpoints, not directions: :func:`~heapgrasp.planning.viewsphere_policies.run_viewpoint_episode`
+  viewpoints, not directions: :func:`~heapgrasp.viewsphere.policies.run_viewpoint_episode`
   runs it.
 
 Directions whose step falls back onto another direction's
-(:meth:`~heapgrasp.geometry.viewsphere.DiscreteViewsphere.move`) are not candidates; ties
-go to the first direction in :data:`~heapgrasp.geometry.viewsphere.DIRECTIONS`' order.
+(:meth:`~heapgrasp.viewsphere.sphere.DiscreteViewsphere.move`) are not candidates; ties
+go to the first direction in :data:`~heapgrasp.viewsphere.sphere.DIRECTIONS`' order.
 Without object points (nothing seen yet) every view scores 0 and the first valid
 direction is taken; without points in the grasp region the 3D heuristic counts all the
 unexplored points (the paper leaves that case open).
@@ -44,10 +44,10 @@ from scipy import ndimage
 
 from heapgrasp._core import grasp_region, surfel_visibility
 from heapgrasp.geometry.camera import CameraSpec
-from heapgrasp.geometry.viewsphere import DIRECTIONS, DiscreteViewsphere, SpherePose
 from heapgrasp.perception.clouds import project
 from heapgrasp.planning.synthesis import estimate_normals
-from heapgrasp.planning.viewsphere_policies import ViewState, pose_key
+from heapgrasp.viewsphere.policies import ViewState, pose_key
+from heapgrasp.viewsphere.sphere import DIRECTIONS, DiscreteViewsphere, SpherePose
 
 __all__ = [
     "Heuristic2D",

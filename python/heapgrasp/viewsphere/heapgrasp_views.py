@@ -38,11 +38,11 @@ import numpy.typing as npt
 from heapgrasp import MeshScene, OccupancyGrid, score_views
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.motion import ViewSphere
-from heapgrasp.geometry.viewsphere import DiscreteViewsphere, SpherePose
 from heapgrasp.planning.view_network import NetworkViewScorer
 from heapgrasp.planning.views import ViewContext
-from heapgrasp.planning.viewsphere_heuristics import ViewsphereScorer
-from heapgrasp.planning.viewsphere_policies import ViewState, pose_key
+from heapgrasp.viewsphere.heuristics import ViewsphereScorer
+from heapgrasp.viewsphere.policies import ViewState, pose_key
+from heapgrasp.viewsphere.sphere import DiscreteViewsphere, SpherePose
 
 __all__ = ["HeapgraspViewPolicy"]
 

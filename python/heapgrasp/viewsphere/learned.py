@@ -9,7 +9,7 @@ the camera: its rows run from the far side toward the camera's side, its columns
 west to east (the directions N/E/S/W are the camera's, so the grid is too). An object
 cell holds the highest point above the table there (m); an unexplored cell holds the
 share of the unexplored points over the square (in the object's box,
-:meth:`~heapgrasp.planning.viewsphere_heuristics.ViewsphereScorer.targets`) that fall in it.
+:meth:`~heapgrasp.viewsphere.heuristics.ViewsphereScorer.targets`) that fall in it.
 Without object points the grids are zero.
 
 **A policy file** is an ONNX model of kind ``viewsphere-policy``
@@ -36,7 +36,6 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.geometry.viewsphere import DIRECTIONS, DiscreteViewsphere, SpherePose
 from heapgrasp.inference import (
     FORMAT_VERSION,
     META_HPARAMS,
@@ -49,8 +48,9 @@ from heapgrasp.inference import (
     seal,
     weights_dir,
 )
-from heapgrasp.planning.viewsphere_heuristics import ViewsphereScorer
-from heapgrasp.planning.viewsphere_policies import ViewState
+from heapgrasp.viewsphere.heuristics import ViewsphereScorer
+from heapgrasp.viewsphere.policies import ViewState
+from heapgrasp.viewsphere.sphere import DIRECTIONS, DiscreteViewsphere, SpherePose
 
 __all__ = [
     "GRID",

@@ -13,14 +13,14 @@ so a shard re-run gives the same bytes):
 3. for each of the 8 directions (one whose step falls back onto another's is left
    out), ``tries`` paths: that step first, then uniformly random ones, at most
    ``path_steps`` moves in all, each stopped at the first set of views that yields a
-   grasp (:class:`~heapgrasp.loop.viewsphere.ViewsphereGrasps`, the start's unexplored
+   grasp (:class:`~heapgrasp.viewsphere.grasps.ViewsphereGrasps`, the start's unexplored
    region) or once it is longer than the shortest found so far;
 4. the label: the first direction of the shortest path that found a grasp (ties drawn
    at random, so no direction is favoured by the order of the search); a scene where
    no path found one is dropped.
 
 Each shard holds, with the sample axis first: ``state`` (float32 ``(N, 52)``,
-:func:`~heapgrasp.planning.viewsphere_learned.state_features` of the start view),
+:func:`~heapgrasp.viewsphere.learned.state_features` of the start view),
 ``label`` (int64), ``lengths`` (int64 ``(N, 8)``: each direction's shortest path, 0
 where none was found or the direction is not a step), ``object`` (int64, an index of
 ``objects``), ``yaw`` and ``start`` (radians; ``start`` is ``(azimuth, polar)``),
@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from heapgrasp.data.shards import DatasetSpec, ShardedConfig
-from heapgrasp.loop.viewsphere import ViewsphereConfig
+from heapgrasp.viewsphere.grasps import ViewsphereConfig
 
 __all__ = ["FORMAT", "SPEC", "ViewspherePathsConfig", "scene_sample"]
 
@@ -51,7 +51,7 @@ SUPERVISED_OBJECTS = ("prism_20x6x5", "prism_6x6x6")
 
 
 def _settings() -> dict[str, Any]:
-    from heapgrasp.planning.viewsphere_learned import GRID, N_FEATURES
+    from heapgrasp.viewsphere.learned import GRID, N_FEATURES
 
     return {"viewsphere": ViewsphereConfig().to_dict(), "grid": GRID, "n_features": N_FEATURES}
 
@@ -78,7 +78,7 @@ class ViewspherePathsConfig(ShardedConfig):
     def __post_init__(self) -> None:
         super().__post_init__()
         self.positive("tries", "path_steps")
-        from heapgrasp.sim.viewsphere_objects import TEST_OBJECTS, TRAIN_OBJECTS
+        from heapgrasp.viewsphere.objects import TEST_OBJECTS, TRAIN_OBJECTS
 
         allowed = TEST_OBJECTS if self.split == "test" else TRAIN_OBJECTS
         bad = [o for o in self.objects if o not in allowed]
@@ -120,17 +120,17 @@ class ViewspherePathsConfig(ShardedConfig):
 
 
 def _n_features() -> int:
-    from heapgrasp.planning.viewsphere_learned import N_FEATURES
+    from heapgrasp.viewsphere.learned import N_FEATURES
 
     return N_FEATURES
 
 
 def scene_sample(config: ViewspherePathsConfig, index: int) -> dict[str, Any] | None:
     """Scene ``index``'s sample (module doc), or None when it is dropped."""
-    from heapgrasp.geometry.viewsphere import DIRECTIONS, SpherePose
-    from heapgrasp.planning.viewsphere_learned import state_features
-    from heapgrasp.sim.viewsphere_objects import stand_ins
-    from heapgrasp.sim.viewsphere_world import ViewsphereWorld
+    from heapgrasp.viewsphere.learned import state_features
+    from heapgrasp.viewsphere.objects import stand_ins
+    from heapgrasp.viewsphere.sphere import DIRECTIONS, SpherePose
+    from heapgrasp.viewsphere.world import ViewsphereWorld
 
     rng = np.random.default_rng([config.root_seed, index])
     name = config.objects[index % len(config.objects)]

@@ -1,11 +1,11 @@
 """Seed 001's baseline policies on the discrete viewsphere, and its episodes.
 
 The benchmark of seed ``001_95c7dd5c6a7c3646.txt`` (§4.1) starts the camera at
-:data:`~heapgrasp.geometry.viewsphere.START`, looks for a grasp on what it has seen, and
+:data:`~heapgrasp.viewsphere.sphere.START`, looks for a grasp on what it has seen, and
 while none is found moves one step (:meth:`DiscreteViewsphere.move`, with its fallbacks)
 in the direction a policy picks, for at most ``max_steps`` moves (6 in the paper). A
 policy maps the episode's state to one of the 8 directions
-(:data:`~heapgrasp.geometry.viewsphere.DIRECTIONS`):
+(:data:`~heapgrasp.viewsphere.sphere.DIRECTIONS`):
 
 - :class:`RandomPolicy`: uniform over the 8, from a seeded generator;
 - :class:`BrickPolicy`: always north-east (the paper's naive baseline);
@@ -27,7 +27,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.geometry.viewsphere import (
+from heapgrasp.viewsphere.sphere import (
     DIRECTIONS,
     START,
     DiscreteViewsphere,

@@ -3,7 +3,7 @@
 The YCB meshes of seed ``001_95c7dd5c6a7c3646.txt`` cannot be downloaded here, so each
 test object is a procedural stand-in of its published size, built from closed meshes
 (:mod:`trimesh.creation`) and already in the resting pose the protocol gives it
-(:data:`~heapgrasp.sim.viewsphere_protocol.REST_POSES`: the drill lies on its side, the
+(:data:`~heapgrasp.viewsphere.protocol.REST_POSES`: the drill lies on its side, the
 pudding box stands on its end), its lowest point on the table (``z = 0``) and centred on
 the vertical axis. The drill and the toy airplane part are plausible composites of boxes and
 cylinders. The training objects of §4.3 are the three prisms, a handle, a gasket and a
@@ -11,7 +11,7 @@ cinder block. Real meshes come in through ``--object-dir`` (:func:`user_objects`
 nothing here is tuned to.
 
 A benchmark object (:class:`ViewsphereObject`) is its meshes at rest and the range of
-yaws its poses take (:func:`~heapgrasp.sim.viewsphere_protocol.protocol_yaws`);
+yaws its poses take (:func:`~heapgrasp.viewsphere.protocol.protocol_yaws`);
 :meth:`ViewsphereObject.posed` turns it by one of them.
 """
 
@@ -28,7 +28,7 @@ import trimesh
 from trimesh import creation
 
 from heapgrasp.sim.objects import _revolve, load_mesh, user_models
-from heapgrasp.sim.viewsphere_protocol import REST_POSES
+from heapgrasp.viewsphere.protocol import REST_POSES
 
 __all__ = [
     "TEST_OBJECTS",
@@ -288,7 +288,7 @@ def user_objects(
     """The user's objects (:func:`heapgrasp.sim.objects.user_models`: a folder per
     object with its ``model.urdf``, or mesh files) at rest: an object named like a
     protocol object (e.g. ``003_cracker_box``) takes the protocol's roll, pitch and yaw
-    range (:data:`~heapgrasp.sim.viewsphere_protocol.REST_POSES`); any other rests in
+    range (:data:`~heapgrasp.viewsphere.protocol.REST_POSES`); any other rests in
     its most stable pose, with yaws over 0–359°. Each object that cannot be used is
     reported to ``on_bad(name, problem)`` and left out."""
     models = user_models(

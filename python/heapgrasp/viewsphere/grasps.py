@@ -3,7 +3,7 @@ has taken: what a simulated or a real depth camera feeds the benchmark's policie
 
 The benchmark of seed ``001_95c7dd5c6a7c3646.txt`` (§3.2–3.3) asks after every move
 whether the views taken so far yield a grasp. :class:`ViewsphereGrasps` answers it from
-depth images (any source: :class:`heapgrasp.sim.viewsphere_world.ViewsphereWorld`
+depth images (any source: :class:`heapgrasp.viewsphere.world.ViewsphereWorld`
 renders them; a real camera would capture them):
 
 1. each view's points (the sensor's range) down-sampled at the voxel (the core's
@@ -21,7 +21,7 @@ renders them; a real camera would capture them):
    (the hand grown by half a voxel: see :attr:`ViewsphereConfig.hand_margin_voxels`).
 
 Every view's depth, points and mask, and every set's answer, are cached: a search over
-sets of views (:func:`~heapgrasp.planning.viewsphere_policies.breadth_first`) and several
+sets of views (:func:`~heapgrasp.viewsphere.policies.breadth_first`) and several
 policies on the same object pose pay for each once. Every parameter is a field of
 :class:`ViewsphereConfig`, with the paper's values as defaults.
 """
@@ -40,7 +40,6 @@ import numpy.typing as npt
 from heapgrasp import depth_voxels
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
-from heapgrasp.geometry.viewsphere import DiscreteViewsphere, SpherePose
 from heapgrasp.perception.clouds import (
     TablePlane,
     UnexploredRegion,
@@ -54,8 +53,9 @@ from heapgrasp.planning.synthesis import (
     patched_pairs,
     rank_grasps,
 )
-from heapgrasp.planning.viewsphere_heuristics import ViewsphereScorer
-from heapgrasp.planning.viewsphere_policies import PoseKey, pose_key
+from heapgrasp.viewsphere.heuristics import ViewsphereScorer
+from heapgrasp.viewsphere.policies import PoseKey, pose_key
+from heapgrasp.viewsphere.sphere import DiscreteViewsphere, SpherePose
 
 __all__ = ["SEED001_CAMERA", "FoundGrasp", "ViewsphereConfig", "ViewsphereGrasps"]
 
@@ -406,7 +406,7 @@ class ViewsphereGrasps:
         return self.object_points(poses)[0], self.unexplored(poses)
 
     def grasp_found(self, keys: frozenset[PoseKey]) -> bool:
-        """:func:`~heapgrasp.planning.viewsphere_policies.breadth_first`'s question for a
+        """:func:`~heapgrasp.viewsphere.policies.breadth_first`'s question for a
         set of pose keys: the configured start pose, which every set holds, first."""
         start = pose_key(self.config.start)
         ordered = [start, *sorted(k for k in keys if k != start)]

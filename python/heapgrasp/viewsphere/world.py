@@ -5,9 +5,9 @@ The object's meshes (world frame, resting on the table top at ``z = 0``) and a t
 slab are rendered by the Rust core's rasteriser (:class:`heapgrasp.MeshScene`; ideal depth as
 in the paper, or through our depth sensor's model for a transparent, specular or opaque
 object) with seed 001's camera
-(:data:`~heapgrasp.loop.viewsphere.SEED001_CAMERA`) from the poses of a
-:class:`~heapgrasp.geometry.viewsphere.DiscreteViewsphere` centred on the table's centre.
-Whether a set of views yields a grasp is :class:`~heapgrasp.loop.viewsphere.ViewsphereGrasps`'
+(:data:`~heapgrasp.viewsphere.grasps.SEED001_CAMERA`) from the poses of a
+:class:`~heapgrasp.viewsphere.sphere.DiscreteViewsphere` centred on the table's centre.
+Whether a set of views yields a grasp is :class:`~heapgrasp.viewsphere.grasps.ViewsphereGrasps`'
 answer on these depth images (the same code a real camera's images would go through);
 the world holds one and forwards its questions.
 """
@@ -21,15 +21,15 @@ import numpy.typing as npt
 
 from heapgrasp import MeshScene
 from heapgrasp.geometry.camera import CameraSpec
-from heapgrasp.geometry.viewsphere import SpherePose
-from heapgrasp.loop.viewsphere import (
+from heapgrasp.sim.optics import Category, DepthModel
+from heapgrasp.viewsphere.grasps import (
     SEED001_CAMERA,
     FoundGrasp,
     ViewsphereConfig,
     ViewsphereGrasps,
 )
-from heapgrasp.planning.viewsphere_policies import PoseKey, pose_key
-from heapgrasp.sim.optics import Category, DepthModel
+from heapgrasp.viewsphere.policies import PoseKey, pose_key
+from heapgrasp.viewsphere.sphere import SpherePose
 
 __all__ = ["SEED001_CAMERA", "FoundGrasp", "ViewsphereWorld"]
 

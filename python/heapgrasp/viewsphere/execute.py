@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.loop.viewsphere import FoundGrasp
 from heapgrasp.sim.objects import (
     MAX_COLLISION_PIECES,
     ObjectModel,
@@ -36,7 +35,8 @@ from heapgrasp.sim.objects import (
     _write_if_changed,
     default_cache_dir,
 )
-from heapgrasp.sim.viewsphere_objects import Mesh
+from heapgrasp.viewsphere.grasps import FoundGrasp
+from heapgrasp.viewsphere.objects import Mesh
 
 __all__ = ["execute_found_grasp", "object_model"]
 

@@ -1,7 +1,7 @@
 """Training seed 001's learned viewsphere policies (§4.3): PCA + logistic regression and
-PCA + LDA on the paths dataset (:mod:`heapgrasp.data.viewsphere_paths`), and the deep
+PCA + LDA on the paths dataset (:mod:`heapgrasp.viewsphere.data`), and the deep
 Q-network by playing episodes in the simulator. Each writes a policy file
-(:func:`~heapgrasp.planning.viewsphere_learned.policy_onnx`), ``metrics.json`` and
+(:func:`~heapgrasp.viewsphere.learned.policy_onnx`), ``metrics.json`` and
 ``metrics.png``.
 
 **PCA + LR / LDA** (scikit-learn): the states standardised, PCA keeping 85 % of the
@@ -42,7 +42,7 @@ import numpy as np
 import numpy.typing as npt
 
 from heapgrasp.inference import write_atomically
-from heapgrasp.loop.viewsphere import ViewsphereConfig
+from heapgrasp.viewsphere.grasps import ViewsphereConfig
 
 __all__ = [
     "DqnConfig",
@@ -59,7 +59,7 @@ def load_paths(paths: Sequence[Path]) -> dict[str, npt.NDArray[Any]]:
     """The samples of one or more paths datasets, concatenated (FileNotFoundError or
     ValueError naming a directory that is not one)."""
     from heapgrasp.data.shards import read_manifest
-    from heapgrasp.data.viewsphere_paths import SPEC
+    from heapgrasp.viewsphere.data import SPEC
 
     parts: dict[str, list[npt.NDArray[Any]]] = {}
     for root in paths:
@@ -141,7 +141,7 @@ def train_linear(
         raise ImportError(
             f"training PCA + {kind} needs scikit-learn: pip install 'heapgrasp[train]'"
         ) from exc
-    from heapgrasp.planning.viewsphere_learned import policy_onnx
+    from heapgrasp.viewsphere.learned import policy_onnx
 
     if kind not in ("lr", "lda"):
         raise ValueError(f"kind must be 'lr' or 'lda', got {kind!r}")
@@ -240,7 +240,7 @@ class DqnConfig:
             raise ValueError(f"gamma must be in [0, 1), got {self.gamma}")
         if not (0.0 < self.epsilon_decay <= 1.0 and 0.0 <= self.epsilon_min <= 1.0):
             raise ValueError("epsilon_decay must be in (0, 1] and epsilon_min in [0, 1]")
-        from heapgrasp.sim.viewsphere_objects import TRAIN_OBJECTS
+        from heapgrasp.viewsphere.objects import TRAIN_OBJECTS
 
         bad = [o for o in self.objects if o not in TRAIN_OBJECTS]
         if bad:
@@ -259,8 +259,8 @@ class _Worlds:
     cache: OrderedDict[tuple[str, float], Any] = field(default_factory=OrderedDict)
 
     def get(self, name: str, yaw: float) -> Any:
-        from heapgrasp.sim.viewsphere_objects import stand_ins
-        from heapgrasp.sim.viewsphere_world import ViewsphereWorld
+        from heapgrasp.viewsphere.objects import stand_ins
+        from heapgrasp.viewsphere.world import ViewsphereWorld
 
         key = (name, yaw)
         if key in self.cache:
@@ -288,9 +288,9 @@ def train_dqn(
         raise ImportError("training the DQN needs PyTorch: pip install 'heapgrasp[train]'") from exc
     from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
-    from heapgrasp.geometry.viewsphere import DIRECTIONS
-    from heapgrasp.planning.viewsphere_learned import N_FEATURES, policy_onnx, state_features
-    from heapgrasp.sim.viewsphere_objects import TRAIN_OBJECTS
+    from heapgrasp.viewsphere.learned import N_FEATURES, policy_onnx, state_features
+    from heapgrasp.viewsphere.objects import TRAIN_OBJECTS
+    from heapgrasp.viewsphere.sphere import DIRECTIONS
 
     t0 = time.perf_counter()
     rng = np.random.default_rng(config.seed)

@@ -16,7 +16,7 @@ use nalgebra::Point3;
 use crate::camera::{PinholeCamera, Pose};
 use crate::error::{Error, Result};
 use crate::parallel;
-use crate::synthesis::check_flat_points;
+use crate::viewsphere::synthesis::check_flat_points;
 
 /// Points per thread below which a call stays on one thread.
 const MIN_POINTS_PER_THREAD: usize = 20_000;

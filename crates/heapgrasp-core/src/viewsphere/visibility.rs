@@ -25,7 +25,7 @@ use parry3d::shape::TriMesh;
 
 use crate::error::{Error, Result};
 use crate::parallel;
-use crate::synthesis::{CloudIndex, Point};
+use crate::viewsphere::synthesis::{CloudIndex, Point};
 
 /// Object points per thread below which the grasp region stays on one thread.
 const MIN_POINTS_PER_THREAD: usize = 2_000;
