@@ -225,7 +225,7 @@ def test_a_bad_method_table_is_named(tmp_path: Path, text: str, match: str) -> N
 
 
 def test_the_oracle_counts_eq14_on_the_configured_column() -> None:
-    from heapgrasp.loop.phase import ORACLE_FRAMES, make_view_scorer
+    from heapgrasp.loop.stages import ORACLE_FRAMES, make_view_scorer
     from heapgrasp.planning.views import OracleViewScorer
 
     scorer = make_view_scorer(RunConfig(view_planner="oracle", target_radius=0.05))

@@ -10,8 +10,8 @@ import pytest
 from conftest import box_model
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.loop.config import ConfigError, RunConfig
-from heapgrasp.loop.phase import make_critic
 from heapgrasp.loop.protocol import StopReason, run_clutter_removal
+from heapgrasp.loop.stages import make_critic
 from heapgrasp.planning.critic import (
     CROP_SHAPE,
     N_SCALARS,

@@ -154,6 +154,10 @@ class _Spy:
     """A grasp planner that keeps what the loop feeds it."""
 
     name = "spy"
+    sigma = 1.0
+    epsilon = 0.8
+    opens_fully = False
+    needs_hull_check = False
 
     def __init__(self, input_kind: str) -> None:
         self.input_kind = input_kind

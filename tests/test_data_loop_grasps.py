@@ -22,7 +22,7 @@ from heapgrasp.data.loop_grasps import (
 )
 from heapgrasp.data.shards import generate, shard_path
 from heapgrasp.geometry.gripper import PANDA_HAND
-from heapgrasp.loop.phase import make_grasp_planner
+from heapgrasp.loop.stages import make_grasp_planner
 from heapgrasp.sim.build import scene_world, sim_pipeline
 from heapgrasp.sim.grasp_labels import labeller
 

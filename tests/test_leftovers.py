@@ -12,8 +12,8 @@ import pytest
 from conftest import box_model
 from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
 from heapgrasp.loop.config import RunConfig
-from heapgrasp.loop.phase import build_pipeline
 from heapgrasp.loop.protocol import StopReason, run_clutter_removal
+from heapgrasp.loop.stages import build_pipeline
 from heapgrasp.loop.summary import leftover_summary
 from heapgrasp.sim.leftovers import describe_leftovers
 from heapgrasp.sim.objects import ObjectLibrary

@@ -439,7 +439,7 @@ def test_a_network_for_the_2f140_plans_for_its_hand(onnx_files, tmp_path):
     from heapgrasp.geometry.errors import WeightsError
     from heapgrasp.geometry.gripper import PANDA_HAND, ROBOTIQ_2F140
     from heapgrasp.loop.config import ConfigError, RunConfig
-    from heapgrasp.loop.phase import make_grasp_planner
+    from heapgrasp.loop.stages import make_grasp_planner
     from heapgrasp.nets import export_onnx
 
     net, _ = onnx_files["grasp40"]
@@ -570,7 +570,7 @@ def test_resolve_device_names_what_pytorch_sees():
 
 def test_the_grasp_network_reads_the_grid_it_was_trained_on(onnx_files, tmp_path):
     from heapgrasp.loop.config import ConfigError, RunConfig
-    from heapgrasp.loop.phase import make_grasp_planner
+    from heapgrasp.loop.stages import make_grasp_planner
     from heapgrasp.nets import export_onnx
 
     net, occupancy = onnx_files["grasp16"]
@@ -595,7 +595,7 @@ def test_the_grasp_network_reads_the_grid_it_was_trained_on(onnx_files, tmp_path
 def test_the_config_picks_the_networks_device(onnx_files):
     from heapgrasp.inference import resolve_device as ort_device
     from heapgrasp.loop.config import ConfigError, RunConfig
-    from heapgrasp.loop.phase import make_grasp_planner, make_view_scorer, net_device
+    from heapgrasp.loop.stages import make_grasp_planner, make_view_scorer, net_device
 
     base = {"grasp_planner": "network", "grasp_weights": str(onnx_files["grasp40"][1])}
     base |= {"view_planner": "network", "view_weights": str(onnx_files["view40"][1])}

@@ -29,7 +29,7 @@ from heapgrasp.inference import (
     shipped_weights,
 )
 from heapgrasp.loop.config import ConfigError, RunConfig
-from heapgrasp.loop.phase import make_grasp_planner, make_view_scorer
+from heapgrasp.loop.stages import make_grasp_planner, make_view_scorer
 from heapgrasp.planning.critic import CROP_SHAPE, DEFAULT_CRITIC, N_SCALARS, GraspCritic
 from heapgrasp.planning.view_network import NetworkViewScorer, network_input
 from heapgrasp.planning.views import ViewContext, ViewScorer, target_region

@@ -18,8 +18,8 @@ from heapgrasp.cli import main
 from heapgrasp.cli.robot import ROBOT_TOML
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.gripper import ROBOTIQ_2F140
-from heapgrasp.loop.phase import build_pipeline
 from heapgrasp.loop.protocol import run_clutter_removal
+from heapgrasp.loop.stages import build_pipeline
 from heapgrasp.real.calibrate import calibrate_robot, read_taught, world_in_board
 from heapgrasp.real.check import check
 from heapgrasp.real.replay import replay

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
 from heapgrasp.loop.config import ConfigError, RunConfig
-from heapgrasp.loop.phase import build_pipeline
+from heapgrasp.loop.stages import build_pipeline
 from heapgrasp.robot.interfaces import Arm, Camera, Gripper, Robot, SceneTruth
 
 TESTS = Path(__file__).resolve().parent
@@ -45,7 +45,7 @@ PHASE = BLOCK + textwrap.dedent(
     sys.path.insert(0, {str(TESTS)!r})
     from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
     from heapgrasp.loop.config import RunConfig
-    from heapgrasp.loop.phase import build_pipeline
+    from heapgrasp.loop.stages import build_pipeline
     from heapgrasp.loop.protocol import run_clutter_removal
     from heapgrasp.planning.views import OracleViewScorer
 
@@ -209,7 +209,7 @@ def test_a_phase_with_the_view_network_runs_on_a_robot_without_torch(tmp_path: P
         sys.path.insert(0, {str(TESTS)!r})
         from fake_robot import FakeRobot, FakeScene, RedSegmenter
         from heapgrasp.loop.config import RunConfig
-        from heapgrasp.loop.phase import build_pipeline
+        from heapgrasp.loop.stages import build_pipeline
         from heapgrasp.planning.view_network import NetworkViewScorer
 
         robot = FakeRobot(FakeScene({BOXES!r}))
@@ -257,7 +257,7 @@ def test_the_loop_plans_for_the_robots_gripper() -> None:
 def test_the_shipped_grasp_networks_grasps_are_checked_against_the_hull(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    from heapgrasp.loop.phase import make_grasp_planner
+    from heapgrasp.loop.stages import make_grasp_planner
     from heapgrasp.perception.silhouette import SilhouettePerception
     from heapgrasp.planning.grasp_network import NetworkGraspPlanner
     from heapgrasp.planning.hull_check import HullCheck

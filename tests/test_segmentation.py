@@ -333,7 +333,7 @@ class _NoTruth:
 
 
 def test_segmenter_setting(run_dir: Path, tmp_path: Path) -> None:
-    from heapgrasp.loop.phase import make_segmenter
+    from heapgrasp.loop.stages import make_segmenter
     from heapgrasp.perception.segmenters import IdealSegmenter
 
     assert RunConfig().segmenter == "truth"

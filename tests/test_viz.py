@@ -11,8 +11,8 @@ from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
 from heapgrasp.cli import main
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.loop.config import RunConfig
-from heapgrasp.loop.phase import build_pipeline
 from heapgrasp.loop.protocol import run_clutter_removal
+from heapgrasp.loop.stages import build_pipeline
 
 pytest.importorskip("rerun")
 

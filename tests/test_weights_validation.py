@@ -21,7 +21,7 @@ from heapgrasp import HeapgraspError
 from heapgrasp.cli import main
 from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.loop.config import ConfigError, RunConfig
-from heapgrasp.loop.phase import make_critic
+from heapgrasp.loop.stages import make_critic
 from heapgrasp.planning.critic import (
     CROP_SHAPE,
     DEFAULT_CRITIC,
@@ -589,7 +589,7 @@ def test_bad_network_is_a_config_error_before_any_scene(
     torch = pytest.importorskip("torch")
     onnx = pytest.importorskip("onnx")
     from heapgrasp.inference import META_SHA256, seal
-    from heapgrasp.loop.phase import make_grasp_planner, make_view_scorer
+    from heapgrasp.loop.stages import make_grasp_planner, make_view_scorer
     from heapgrasp.nets import GraspNet, ViewNet, export_onnx
     from onnx import numpy_helper
 

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.methods import method_of
 from heapgrasp.loop.records import (
     CONFIG_FILE,
     RESULTS_FILE,
@@ -77,7 +78,7 @@ def preflight(config: RunConfig, *, viz: bool = False) -> None:
     — so that a count that cannot be placed, a missing optional dependency (PyTorch for
     the networks, rerun-sdk for ``viz``) or a bad weights file is one clear error, not a
     failed record per scene."""
-    from heapgrasp.loop.phase import (
+    from heapgrasp.loop.stages import (
         make_critic,
         make_grasp_planner,
         make_segmenter,
@@ -100,7 +101,7 @@ def preflight(config: RunConfig, *, viz: bool = False) -> None:
     make_grasp_planner(config)
     make_view_scorer(config)
     make_critic(config)
-    if config.segmenter == "network":  # a bad file: one error, not a failed scene each
+    if method_of(config).rgb:  # the segmentation network: one error, not a failed scene each
         make_segmenter(config, None)
     if viz:
         from heapgrasp.viz.recorder import import_rerun

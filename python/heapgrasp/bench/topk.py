@@ -128,7 +128,7 @@ def evaluate_phase(
 
 def _rankers(config: TopKConfig, base: RunConfig) -> dict[str, tuple[RunConfig, Any, Any]]:
     from heapgrasp.geometry.gripper import PANDA_HAND
-    from heapgrasp.loop.phase import make_critic, make_grasp_planner
+    from heapgrasp.loop.stages import make_critic, make_grasp_planner
 
     out = {}
     for name in config.planners:

@@ -163,7 +163,7 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
             pipeline.plan()
             grid = perception.grasp_input()
             volumes = pipeline.grasp_planner.predict(grid, pipeline.frame)
-            sigma = getattr(pipeline.grasp_planner, "sigma", 1.0)
+            sigma = pipeline.grasp_planner.sigma
             candidates = select_candidates(
                 volumes, epsilon=config.epsilon, sigma=sigma, nms_window=run_config.nms_window
             )[: config.max_candidates]

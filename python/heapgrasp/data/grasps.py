@@ -186,6 +186,10 @@ class _Recorder:
     """A grasp planner that keeps the grid the loop feeds it and plans nothing."""
 
     name = "recorder"
+    sigma = 1.0
+    epsilon = 0.8
+    opens_fully = False
+    needs_hull_check = False
 
     def __init__(self, input_kind: str) -> None:
         self.input_kind = input_kind

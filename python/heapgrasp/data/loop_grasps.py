@@ -139,8 +139,11 @@ class LoopGraspDataConfig(ShardedConfig):
 
     @property
     def input(self) -> str:
-        """The grid the network reads: ``tsdf`` for ``vgn``, else ``occupancy``."""
-        return "tsdf" if self.method == "vgn" else "occupancy"
+        """The grid the network reads: the method's (``tsdf`` for ``vgn``, else
+        ``occupancy``: :func:`~heapgrasp.loop.methods.method_of`)."""
+        from heapgrasp.loop.methods import method_of
+
+        return method_of(self.run_config("opaque", "pile")).grid
 
     def identity(self) -> dict[str, Any]:
         """As every dataset's, with the network's file named by its digest (the same
@@ -287,8 +290,8 @@ def scene_samples(
 ) -> list[dict[str, Any]]:
     """Scene ``index`` through the protocol; one sample per phase that gave one."""
     from heapgrasp.geometry.gripper import PANDA_HAND
-    from heapgrasp.loop.phase import make_grasp_planner
     from heapgrasp.loop.protocol import PlanResult, run_clutter_removal
+    from heapgrasp.loop.stages import make_grasp_planner
     from heapgrasp.sim.build import object_library, sim_pipeline
     from heapgrasp.sim.optics import DepthModel
     from heapgrasp.sim.world import SimWorld, WorldConfig

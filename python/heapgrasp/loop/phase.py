@@ -36,8 +36,12 @@ measured time of perception, grasp planning, view planning and selection (not th
 spent simulating the camera); its motion time is the ruckig duration of every camera
 motion plus the straight approach to the pre-grasp pose.
 
-:func:`build_pipeline` assembles a pipeline from a :class:`~heapgrasp.loop.config.RunConfig`
-and a robot; every stage can also be passed in (any object satisfying its protocol).
+The pipeline reads what it needs of its method from a
+:class:`~heapgrasp.loop.stages.Method` and of its stages from the stages themselves (a
+grasp planner's grid, σ, ε, hull check: :class:`~heapgrasp.planning.volumes.GraspPlanner`),
+never the names in the configuration. :func:`heapgrasp.loop.stages.build_pipeline`
+assembles one from a :class:`~heapgrasp.loop.config.RunConfig` and a robot; every stage
+can also be passed in (any object satisfying its protocol).
 """
 
 from __future__ import annotations
@@ -45,57 +49,45 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.grid import GridFrame
-from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
 from heapgrasp.geometry.motion import MotionLimits, ViewSphere, plan_waypoints, time_path
-from heapgrasp.inference import Kind, resolve_device, shipped_grasp_network, shipped_weights
 from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.methods import Method
 from heapgrasp.loop.observe import PhaseObserver
 from heapgrasp.loop.policies import EarlyStop, RimSweep
 from heapgrasp.loop.protocol import PlanResult
 from heapgrasp.perception.depth import DepthPerception
 from heapgrasp.perception.frames import Capture, Frame
-from heapgrasp.perception.segmenters import IdealSegmenter, MaskSource, NoisySegmenter, Segmenter
+from heapgrasp.perception.segmenters import Segmenter
 from heapgrasp.perception.silhouette import SilhouettePerception, grid_agreement
-from heapgrasp.planning.critic import DEFAULT_CRITIC, GraspCritic
+from heapgrasp.planning.critic import GraspCritic
 from heapgrasp.planning.hull_check import HullCheck
 from heapgrasp.planning.selection import select_next_waypoint, select_target, top_scoring
-from heapgrasp.planning.views import OracleViewScorer, ViewContext, ViewScorer, fixed_waypoints
+from heapgrasp.planning.views import ViewContext, ViewScorer, fixed_waypoints
 from heapgrasp.planning.volumes import GraspCandidate, GraspPlanner, select_candidates
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE, Grasp, GraspOutcome
 from heapgrasp.robot.interfaces import Robot, SceneTruth, UnreachableError
 
 if TYPE_CHECKING:
-    from heapgrasp.planning.grasp_network import NetworkGraspPlanner
-    from heapgrasp.planning.view_network import NetworkViewScorer
+    pass
 
 __all__ = [
     "LOOK_AGAIN_TURNS",
     "MEMORY_TOLERANCE",
-    "ORACLE_FRAMES",
     "SILHOUETTE_VIEWS",
     "Pipeline",
-    "build_pipeline",
-    "make_critic",
-    "make_grasp_planner",
-    "make_segmenter",
-    "make_view_scorer",
 ]
 
 F64 = npt.NDArray[np.float64]
 
-#: Silhouettes per hypothetical path when the oracle scores a candidate (eq. 14), evenly
-#: spaced along the path (``docs/experiments.md`` measures 10 against 40).
-ORACLE_FRAMES = 10
 #: Where a phase finds no grasp candidate, each look again (``RunConfig.look_again``)
 #: moves the camera to the start pose turned by the next of these angles about the
 #: scene's vertical axis (rad) — the far side first — and views from there as the phase
@@ -144,6 +136,9 @@ class Pipeline:
     robot: Robot
     grasp_planner: GraspPlanner
     segmenter: Segmenter
+    method: Method
+    """What the method senses, grasps on and how it views
+    (:func:`~heapgrasp.loop.methods.method_of`)."""
     view_scorer: ViewScorer | None = None
     rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
     critic: GraspCritic | None = None
@@ -165,10 +160,12 @@ class Pipeline:
         self.candidates = self.sphere.candidates(cfg.U, cfg.V, cfg.theta_max)
         self.limits = MotionLimits(cfg.max_velocity, cfg.max_acceleration, cfg.max_jerk)
         self.camera: CameraSpec = self.robot.arm.camera.spec
-        self.uses_depth = cfg.method == "vgn"
+        self.uses_depth = self.method.depth
         if self.uses_depth != self.robot.arm.camera.depth:
             need = "needs a depth camera" if self.uses_depth else "takes no depth"
-            raise ConfigError(f"method {cfg.method!r} {need}; the robot's camera does not match")
+            raise ConfigError(
+                f"method {self.method.name!r} {need}; the robot's camera does not match"
+            )
         if self.uses_depth:
             self.perception: SilhouettePerception | DepthPerception = DepthPerception(self.frame)
         else:
@@ -184,7 +181,7 @@ class Pipeline:
         self.reference: SilhouettePerception | None = None
         if self.reference_segmenter is not None and not self.uses_depth:
             self.reference = SilhouettePerception(self.frame, self.reference_segmenter, cfg.lam)
-        self.adaptive = cfg.method == "heapgrasp" and cfg.view_planner in ("oracle", "network")
+        self.adaptive = self.method.views == "planned"
         self.early_stop = EarlyStop.from_config(cfg) if self.adaptive else None
         self.sweep = RimSweep.from_config(cfg) if self.adaptive else None
         self.joint_path_errors = 0
@@ -207,10 +204,8 @@ class Pipeline:
         """Waypoints of a fixed-view method (or view planner), from the start's azimuth
         turned by ``turn`` (rad)."""
         cfg = self.config
-        kind = cfg.view_planner if cfg.method == "heapgrasp" else cfg.method
-        kind = {"no-vp": "circle", "vgn": "circle"}.get(kind, kind)
         return fixed_waypoints(
-            kind, self.sphere, L=cfg.L, phi0=cfg.start_pose[2] + turn, rng=self.rng
+            self.method.views, self.sphere, L=cfg.L, phi0=cfg.start_pose[2] + turn, rng=self.rng
         )
 
     def _perceive(self, frames: list[Frame]) -> float:
@@ -234,24 +229,23 @@ class Pipeline:
         critic, its probabilities are the scores."""
         cfg = self.config
         critic = self.critic
-        if (
-            isinstance(self.perception, DepthPerception)
-            and getattr(self.grasp_planner, "input_kind", "occupancy") == "tsdf"
-        ):
+        if isinstance(self.perception, DepthPerception) and self.grasp_planner.input_kind == "tsdf":
             grid = self.perception.tsdf_values()
         else:
             grid = self.perception.grasp_input()
         volumes = self.grasp_planner.predict(grid, self.frame)
-        sigma = cfg.sigma if cfg.sigma is not None else getattr(self.grasp_planner, "sigma", 1.0)
+        sigma = cfg.sigma if cfg.sigma is not None else self.grasp_planner.sigma
         if cfg.epsilon is not None:
             eps = cfg.epsilon
         elif critic is not None:  # the critic's own ε applies to its probabilities
             eps = critic.candidate_epsilon
         else:
-            eps = getattr(self.grasp_planner, "epsilon", 0.8)
+            eps = self.grasp_planner.epsilon
         gripper = self.robot.gripper.geometry
         reject = None
-        if cfg.grasp_planner == "network" and isinstance(self.perception, SilhouettePerception):
+        if self.grasp_planner.needs_hull_check and isinstance(
+            self.perception, SilhouettePerception
+        ):
             # A network's regressed poses, unlike the analytic planner's, are not checked
             # against the hull; against Ŝ≥λ before its roofs were trimmed, which holds
             # the objects (the trimmed grid the network reads need not).
@@ -664,7 +658,7 @@ class Pipeline:
         opening = self.robot.gripper.geometry.max_opening
         # A planner whose grasps were labelled with the hand fully open (the grasp
         # network, as VGN) has them executed so; the others open to their width + 1 cm.
-        width = opening if getattr(self.grasp_planner, "opens_fully", False) else chosen.width
+        width = opening if self.grasp_planner.opens_fully else chosen.width
         grasp = Grasp(chosen.pose, min(width, opening))
         if self.observer is not None:
             self.observer.phase_ended(grasp)
@@ -676,207 +670,3 @@ class Pipeline:
             compute_time=phase.compute,
             extra=extra,
         )
-
-
-# --------------------------------------------------------------------------- builders
-
-
-def make_segmenter(config: RunConfig, truth: MaskSource | None, seed: int = 0) -> Segmenter:
-    """The configured segmenter: with ``segmenter = "network"`` the segmentation network
-    of ``config.seg_weights`` (:class:`~heapgrasp.perception.segnet.NetworkSegmenter`, on
-    RGB frames), else the simulator's: exact silhouettes from ``truth``, with pixel-flip
-    noise ``config.noise`` where it is > 0 (Table V), which needs ``truth``."""
-    if config.segmenter == "network":
-        from heapgrasp.geometry.errors import WeightsError
-        from heapgrasp.perception.segnet import NetworkSegmenter
-
-        try:
-            return NetworkSegmenter(str(config.seg_weights), device=net_device(config))
-        except (FileNotFoundError, WeightsError) as err:
-            raise ConfigError(f"seg_weights: {err}") from None
-    if truth is None:
-        raise ConfigError(
-            "segmenter: the simulator's silhouettes need its scene truth; a real camera "
-            "needs segmenter = 'network' and seg_weights"
-        )
-    if config.noise > 0:
-        return NoisySegmenter(truth, config.noise, seed=seed)
-    return IdealSegmenter(truth)
-
-
-def _weights(path: str | None, kind: Kind, option: str) -> Path:
-    if path:
-        p = Path(path)
-        if not p.is_file():
-            raise ConfigError(f"{option}: weights file not found: {p}")
-        return p
-    found = shipped_weights(kind)
-    if found is None:
-        raise ConfigError(
-            f"{option}: no {kind} weights ship with this version; pass an ONNX weights "
-            f"file (heapgrasp.nets.export_onnx writes one), or use the analytic/oracle planners"
-        )
-    return found
-
-
-def net_device(config: RunConfig) -> str:
-    """The device the networks run on (:attr:`RunConfig.net_device`; ``auto`` resolved by
-    :func:`heapgrasp.inference.resolve_device`). A CUDA device onnxruntime cannot use is a
-    :class:`ConfigError`, not a quiet run on the CPU."""
-    try:
-        return resolve_device(config.net_device)
-    except ValueError as err:
-        raise ConfigError(f"net_device: {err}") from None
-
-
-def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND) -> GraspPlanner:
-    """The configured grasp planner (``antipodal`` or ``network``); the analytic one plans
-    for ``gripper`` (its shape and widest opening)."""
-    if config.grasp_planner == "antipodal":
-        from heapgrasp.planning.antipodal import AntipodalPlanner
-
-        return AntipodalPlanner(max_opening=gripper.max_opening, gripper=gripper)
-    from heapgrasp.planning.grasp_network import NetworkGraspPlanner
-
-    grid = "tsdf" if config.method == "vgn" else "occupancy"
-    if config.grasp_weights:
-        weights = _weights(config.grasp_weights, "grasp-network", "grasp_weights")
-    else:
-        shipped = shipped_grasp_network(grid)
-        if shipped is None:
-            raise ConfigError(
-                f"grasp_weights: no grasp network for {grid} grids ships with this version; "
-                f"pass one (heapgrasp train grasps --input {grid} writes it) or use "
-                f"grasp_planner = 'antipodal'"
-            )
-        weights = shipped
-    planner = _open_network(
-        config, "grasp_weights", weights, lambda w, d: NetworkGraspPlanner(w, device=d)
-    )
-    from heapgrasp.geometry.gripper import GRIPPERS
-
-    if GRIPPERS[planner.gripper].max_opening > gripper.max_opening + 1e-9:
-        raise ConfigError(
-            f"grasp_weights: {weights} was trained for the {planner.gripper} hand, which "
-            f"opens to {GRIPPERS[planner.gripper].max_opening * 100:g} cm; the robot's "
-            f"opens to {gripper.max_opening * 100:g} cm"
-        )
-    if planner.input_kind != grid:
-        raise ConfigError(
-            f"grasp_weights: {weights} was trained on {planner.input_kind} grids, but the "
-            f"{config.method} method feeds it {grid} grids"
-        )
-    return planner
-
-
-def make_critic(config: RunConfig) -> GraspCritic | None:
-    """The configured grasp critic (:attr:`RunConfig.critic`); None where there is none. A
-    missing or bad critic file is a :class:`ConfigError` naming the file and the problem."""
-    source = config.critic
-    if source is None:
-        return None
-    from heapgrasp.geometry.errors import WeightsError
-
-    path = DEFAULT_CRITIC if source == "default" else Path(source)
-    try:
-        return GraspCritic.load(path)
-    except (WeightsError, FileNotFoundError) as err:  # checked whole, before any scene
-        raise ConfigError(f"grasp_critic: {err}") from err
-
-
-_Net = TypeVar("_Net", "NetworkGraspPlanner", "NetworkViewScorer")
-
-
-def _open_network(
-    config: RunConfig, setting: str, weights: Path, open_: Callable[[Path, str], _Net]
-) -> _Net:
-    """A network planner opened from ``weights`` on the configured device; a bad file, a
-    device that cannot run it or a grid side other than the run's is a ConfigError naming
-    ``setting``, before any scene."""
-    from heapgrasp.geometry.errors import WeightsError
-
-    try:
-        net = open_(weights, net_device(config))
-    except WeightsError as err:  # a bad file is a bad setting: one clear error
-        raise ConfigError(f"{setting}: {err}") from err
-    except ValueError as err:  # the device cannot run it
-        raise ConfigError(f"net_device: {err}") from err
-    if net.resolution != config.resolution:
-        raise ConfigError(
-            f"{setting}: {weights} reads {net.resolution}³ grids, the run's grid is "
-            f"{config.resolution}³ (resolution)"
-        )
-    return net
-
-
-def make_view_scorer(config: RunConfig) -> ViewScorer | None:
-    """The configured view scorer; None for fixed-view methods."""
-    if config.method != "heapgrasp" or config.view_planner in ("circle", "hemisphere6"):
-        return None
-    if config.view_planner == "oracle":
-        return OracleViewScorer(
-            frames_per_candidate=ORACLE_FRAMES, target_radius=config.target_radius
-        )
-    from heapgrasp.planning.view_network import NetworkViewScorer
-
-    weights = _weights(config.view_weights, "view-network", "view_weights")
-    scorer = _open_network(
-        config,
-        "view_weights",
-        weights,
-        lambda w, d: NetworkViewScorer(w, device=d, target_radius=config.target_radius),
-    )
-    if scorer.view_shape != (config.U, config.V):
-        u, v = scorer.view_shape
-        raise ConfigError(
-            f"view_weights: {weights} scores {u}×{v} candidates, the run has "
-            f"{config.U}×{config.V} (U, V)"
-        )
-    if scorer.in_channels == 1 and config.target_radius > 0:
-        raise ConfigError(
-            f"view_weights: {weights} is a one-channel view network (occupancy only): it "
-            f"cannot count eq. 14 on the target's column that target_radius = "
-            f"{config.target_radius:g} asks for; set target_radius = 0 (the paper's eq. 14 "
-            f"over the whole grid) or use weights with the region channel (2 or 3 channels)"
-        )
-    return scorer
-
-
-def build_pipeline(
-    config: RunConfig,
-    robot: Robot,
-    *,
-    segmenter: Segmenter,
-    truth: SceneTruth | None = None,
-    grasp_planner: GraspPlanner | None = None,
-    view_scorer: ViewScorer | None = None,
-    critic: GraspCritic | None = None,
-    observer: PhaseObserver | None = None,
-    seed: int = 0,
-    reference_segmenter: Segmenter | None = None,
-) -> Pipeline:
-    """A :class:`Pipeline` for ``config`` on ``robot``; any stage passed explicitly
-    replaces the configured one. The oracle view planner needs ``truth``; ``observer``
-    is told what each phase does (:mod:`heapgrasp.loop.observe`);
-    ``reference_segmenter`` carves a grid to compare with (:attr:`Pipeline.reference_segmenter`)."""
-    if view_scorer is None:
-        view_scorer = make_view_scorer(config)
-    if isinstance(view_scorer, OracleViewScorer) and truth is None:
-        raise ConfigError(
-            "view_planner: the oracle scores views on the true meshes, which only the "
-            "simulator has; on a robot use view_planner = network, circle or hemisphere6"
-        )
-    return Pipeline(
-        config=config,
-        robot=robot,
-        grasp_planner=grasp_planner
-        if grasp_planner is not None
-        else make_grasp_planner(config, robot.gripper.geometry),
-        segmenter=segmenter,
-        view_scorer=view_scorer,
-        rng=np.random.default_rng(seed),
-        critic=critic if critic is not None else make_critic(config),
-        truth=truth,
-        observer=observer,
-        reference_segmenter=reference_segmenter,
-    )

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from heapgrasp.loop.config import RunConfig
+from heapgrasp.loop.methods import method_of
 from heapgrasp.loop.metrics import Phase, aggregate
 from heapgrasp.loop.stats import success_interval
 
@@ -28,9 +29,10 @@ def method_label(config: RunConfig) -> str:
         grasps += ", critic"
     elif critic is not None:
         grasps += f", critic {Path(critic).name}"
-    if config.method == "heapgrasp":
-        return f"heapgrasp ({config.view_planner} views, {grasps})"
-    return f"{config.method} ({grasps})"
+    method = method_of(config)
+    if method.view_planner is not None:
+        return f"{method.name} ({method.view_planner} views, {grasps})"
+    return f"{method.name} ({grasps})"
 
 
 def _stats(values: Sequence[float]) -> dict[str, float | None]:
@@ -158,7 +160,7 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
     return {
         "method": config.method,
         "label": method_label(config),
-        "view_planner": config.view_planner if config.method == "heapgrasp" else None,
+        "view_planner": method_of(config).view_planner,
         "grasp_planner": config.grasp_planner,
         **metrics,
         # 95 % Wilson interval of the success rate, in percent (heapgrasp.loop.stats).

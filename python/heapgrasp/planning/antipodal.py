@@ -220,6 +220,12 @@ class AntipodalPlanner:
     """
 
     name = "antipodal"
+    input_kind = "occupancy"
+    """It plans on occupancy (``Ŝ≥λ``, or a TSDF's occupied side where it is fed one)."""
+    opens_fully = False
+    """Its grasps open to their width + 1 cm."""
+    needs_hull_check = False
+    """Its contacts lie on the grid it read: nothing to check."""
 
     def __init__(
         self,

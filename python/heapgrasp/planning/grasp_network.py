@@ -92,6 +92,12 @@ class NetworkGraspPlanner:
     """
 
     name = "vgn-net"
+    sigma = 1.0
+    """Eq. 15's smoothing of its quality (σ, voxels): VGN's."""
+    epsilon = 0.8
+    """Eq. 15's threshold (ε): VGN's detection threshold."""
+    needs_hull_check = True
+    """Its poses are regressed, not checked against the grid it read."""
 
     def __init__(self, path: str | os.PathLike[str], device: str = "cpu") -> None:
         if not isinstance(path, str | os.PathLike):

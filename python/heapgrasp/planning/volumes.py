@@ -97,9 +97,23 @@ class GraspCandidate:
 
 @runtime_checkable
 class GraspPlanner(Protocol):
-    """Maps a measured grid to grasp volumes."""
+    """Maps a measured grid to grasp volumes, and declares what the loop needs to know of
+    it (the loop reads these, never the planner's name)."""
 
     name: str
+    """For records and labels only."""
+    input_kind: str
+    """The grid it reads: ``"occupancy"`` (``Ŝ≥λ``) or ``"tsdf"`` (the VGN baseline's)."""
+    sigma: float
+    """Eq. 15's smoothing of its quality volume (σ, voxels) unless the run sets one."""
+    epsilon: float
+    """Eq. 15's threshold on its smoothed quality (ε) unless the run or a critic sets one."""
+    opens_fully: bool
+    """Its grasps are executed with the hand fully open (as they were labelled), else
+    opened to the candidate's width + 1 cm."""
+    needs_hull_check: bool
+    """Its poses are not checked against the grid it read (a network's regressed ones):
+    the loop checks them against the hull (:class:`~heapgrasp.planning.hull_check.HullCheck`)."""
 
     def predict(self, grid: F32, frame: GridFrame) -> GraspVolumes:
         """``grid``: ``(R, R, R)`` float32 input volume (the high-confidence occupancy

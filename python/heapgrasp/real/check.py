@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from heapgrasp.loop.methods import method_of
 from heapgrasp.real.setup import load, make_segmenter, open_networks
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.hardware import Drivers, camera_settings
@@ -65,7 +66,7 @@ def check(config_path: str | Path, *, drivers: Drivers | None = None) -> list[di
         seg = make_segmenter(cfg, d.scene)
         if seg is None:
             return "none needed (depth baseline)"
-        if cfg.segmenter != "network":
+        if method_of(cfg).true_silhouettes:
             return "none needed (the rehearsal's exact silhouettes)"
         return f"{cfg.seg_weights} opens"
 

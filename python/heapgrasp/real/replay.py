@@ -36,6 +36,7 @@ from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.gripper import ROBOTIQ_2F140, GripperGeometry, gripper_named
 from heapgrasp.geometry.motion import TimedPath
 from heapgrasp.loop.config import RunConfig
+from heapgrasp.loop.methods import method_of
 from heapgrasp.loop.records import RunDir, write_json
 from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.perception.segmenters import Segmenter
@@ -158,7 +159,7 @@ def _hand(run_dir: Path) -> GripperGeometry:
 
 def _needs_silhouettes(config: RunConfig) -> bool:
     """Whether ``config`` segments with the simulator's silhouettes (a rehearsal's)."""
-    return config.method != "vgn" and config.segmenter != "network"
+    return method_of(config).true_silhouettes
 
 
 def replay(

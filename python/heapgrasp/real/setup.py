@@ -23,14 +23,10 @@ from typing import Any
 
 from heapgrasp.geometry.gripper import ROBOTIQ_2F140, GripperGeometry
 from heapgrasp.loop.config import ConfigError, RunConfig
-from heapgrasp.loop.phase import (
-    Pipeline,
-    build_pipeline,
-    make_critic,
-    make_grasp_planner,
-    make_view_scorer,
-)
-from heapgrasp.loop.phase import make_segmenter as loop_segmenter
+from heapgrasp.loop.methods import method_of
+from heapgrasp.loop.phase import Pipeline
+from heapgrasp.loop.stages import build_pipeline, make_critic, make_grasp_planner, make_view_scorer
+from heapgrasp.loop.stages import make_segmenter as loop_segmenter
 from heapgrasp.perception.segmenters import MaskSource, Segmenter
 from heapgrasp.planning.critic import GraspCritic
 from heapgrasp.planning.views import ViewScorer
@@ -68,17 +64,18 @@ def run_config(robot: RobotConfig, *, simulated: bool = False) -> RunConfig:
         cfg = RunConfig().replace(changes, source=f"{src} [method]")
     except ConfigError as exc:
         raise RobotConfigError(str(exc)) from None
-    if cfg.method == "heapgrasp" and cfg.view_planner == "oracle":
+    method = method_of(cfg)
+    if method.oracle_views:
         raise RobotConfigError(
             f"{src}: [method] view_planner = 'oracle' scores views on the true meshes, which "
             "only the simulator has; use 'network', 'circle' or 'hemisphere6'"
         )
-    if cfg.method == "vgn":
+    if method.depth:
         if not robot.camera.depth:
             raise RobotConfigError(
                 f"{src}: the vgn baseline needs depth: set [camera] depth = true"
             )
-    elif cfg.segmenter != "network" and not simulated:
+    elif method.true_silhouettes and not simulated:
         raise RobotConfigError(
             f"{src}: a real camera's frames are segmented by the network: set [networks] "
             "segmentation to the ONNX file `heapgrasp seg train` wrote"
@@ -117,7 +114,7 @@ def load(path: str | Path, *, simulated: bool = False) -> tuple[RobotConfig, Run
 def make_segmenter(config: RunConfig, truth: MaskSource | None = None) -> Segmenter | None:
     """The segmentation network of ``config`` (None for the depth baseline); with a
     rehearsal's ``truth``, the simulator's segmenters too."""
-    if config.method == "vgn":
+    if method_of(config).depth:
         return None
     try:
         return loop_segmenter(config, truth)

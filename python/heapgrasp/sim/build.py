@@ -10,8 +10,10 @@ from pathlib import Path
 
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.methods import method_of
 from heapgrasp.loop.observe import PhaseObserver
-from heapgrasp.loop.phase import Pipeline, build_pipeline, make_segmenter
+from heapgrasp.loop.phase import Pipeline
+from heapgrasp.loop.stages import build_pipeline, make_segmenter
 from heapgrasp.perception.segmenters import IdealSegmenter
 from heapgrasp.planning.critic import GraspCritic
 from heapgrasp.planning.views import ViewScorer
@@ -140,7 +142,7 @@ def sim_camera(config: RunConfig, *, rgb: bool = False) -> SimCamera:
     """The method's camera: VGN's 640×480 depth camera (HEAPGrasp §VI-B), else the
     320×240 RGB camera of continuous capture; ``rgb`` renders colour images too (slow,
     for recordings: the loop's segmenters read the scene truth)."""
-    if config.method == "vgn":
+    if method_of(config).depth:
         return SimCamera(CameraSpec.still(), depth=True, rgb=rgb)
     return SimCamera(CameraSpec.continuous(), depth=False, rgb=rgb)
 
@@ -174,7 +176,7 @@ def sim_pipeline(
     (``body``, default :func:`make_body`), its scene truth, and the segmenter reading
     exact (or noisy) silhouettes from it; any stage passed replaces the configured one.
     ``rgb``: the camera renders colour images too (:func:`sim_camera`)."""
-    camera = sim_camera(config, rgb=rgb or config.segmenter == "network")
+    camera = sim_camera(config, rgb=rgb or method_of(config).rgb)
     robot = SimRobot(body if body is not None else make_body(config, world), camera)
     truth = SimTruth(world, robot.body)
     return build_pipeline(
