@@ -16,7 +16,7 @@ import heapgrasp as hg
 import reference as ref
 
 if TYPE_CHECKING:
-    from heapgrasp.sim.objects import ObjectModel
+    from heapgrasp.sim.object_model import ObjectModel
 
 GRID_ORIGIN = (-0.15, -0.15, 0.0)
 GRID_SIZE = 0.30
@@ -86,7 +86,7 @@ def box_model(
     """A user box of ``extents`` (m) named ``test/NAME``, its mesh written to
     ``tmp/NAME.obj``."""
     import trimesh
-    from heapgrasp.sim.objects import ObjectModel
+    from heapgrasp.sim.object_model import ObjectModel
 
     path = tmp / f"{name}.obj"
     trimesh.creation.box(extents=extents).export(path)

@@ -15,7 +15,9 @@ import trimesh
 from heapgrasp.cli import main
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.sim.build import object_library
-from heapgrasp.sim.objects import MAX_COLLISION_PIECES, load_mesh, user_models
+from heapgrasp.sim.mesh_files import load_mesh
+from heapgrasp.sim.object_model import MAX_COLLISION_PIECES
+from heapgrasp.sim.objects import user_models
 from scipy.spatial import ConvexHull
 
 #: Small and fast: two upright objects, one grasp attempt (tests/test_rundir.py).
@@ -140,13 +142,13 @@ def test_subfolders_load_with_origins_scales_and_convex_pieces(
     assert 8e-5 * 0.9 < volume < 1.28e-4 * 0.9  # the U is 80 cm³, its convex hull 128 cm³
 
     # Cached by content: the second load runs no decomposition and gives the same files.
-    import heapgrasp.sim.objects as objects
+    import heapgrasp.sim.decomposition as decomposition
 
     def refuse(*args: object, **kwargs: object) -> None:
         raise AssertionError("pybullet.vhacd ran again")
 
     before = {p: p.read_bytes() for m in (box, u) for p in (m.visual_mesh, *m.collision_meshes)}
-    monkeypatch.setattr(objects, "_vhacd", refuse)
+    monkeypatch.setattr(decomposition, "_vhacd", refuse)
     t0 = time.perf_counter()
     again = user_models(folder, cache)
     assert time.perf_counter() - t0 < max(0.5, first_s / 4)
@@ -331,7 +333,7 @@ def test_a_junk_mesh_file_is_named_as_such(tmp_path: Path, cache: Path) -> None:
 def test_a_decomposition_that_runs_too_long_is_stopped(tmp_path: Path) -> None:
     # V-HACD is C code that cannot be interrupted where it runs: it runs in a child
     # process, stopped at the bound, and the object is skipped with the reason
-    from heapgrasp.sim.objects import _vhacd
+    from heapgrasp.sim.decomposition import _vhacd
 
     mesh = trimesh.creation.annulus(r_min=0.02, r_max=0.04, height=0.05)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)

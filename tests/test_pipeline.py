@@ -25,7 +25,8 @@ from heapgrasp.run import (
     run,
 )
 from heapgrasp.sim.build import sim_pipeline
-from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
+from heapgrasp.sim.object_model import ObjectModel
+from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.world import SimWorld
 
 BOX = (0.05, 0.04, 0.07)

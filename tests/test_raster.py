@@ -107,7 +107,8 @@ def test_contour_fill_equals_faces_on_procedural_objects(tmp_path):
     the two must agree pixel for pixel.
     """
     from heapgrasp.geometry.motion import look_at
-    from heapgrasp.sim.objects import generate_procedural, load_mesh
+    from heapgrasp.sim.mesh_files import load_mesh
+    from heapgrasp.sim.procedural import generate_procedural
 
     rng = np.random.default_rng(5)
     models = generate_procedural(tmp_path, count_per_kind=1, seed=2)

@@ -11,15 +11,9 @@ import pytest
 from conftest import box_model
 from heapgrasp.geometry.motion import MotionLimits, ViewSphere, plan_waypoints
 from heapgrasp.robot.grasping import BIN_POSE
-from heapgrasp.sim.arm import (
-    ArmConfig,
-    JointPathError,
-    PandaArm,
-    UnreachableError,
-    default_hand2camera,
-    joint_profile,
-    retime_for_arm,
-)
+from heapgrasp.sim.arm import PandaArm, UnreachableError
+from heapgrasp.sim.arm_config import ArmConfig, default_hand2camera
+from heapgrasp.sim.arm_timing import JointPathError, joint_profile, retime_for_arm
 from heapgrasp.sim.gripper import Grasp, GraspOutcome, execute_grasp
 from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.robot import Robot

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from heapgrasp.cli import main
-from heapgrasp.sim.objects import load_mesh
+from heapgrasp.sim.mesh_files import load_mesh
 
 
 def test_capture_writes_consistent_frames(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

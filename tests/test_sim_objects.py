@@ -12,17 +12,15 @@ import pybullet as pb
 import pybullet_data
 import pytest
 import trimesh
-from heapgrasp.sim.objects import (
+from heapgrasp.sim.mesh_files import load_mesh
+from heapgrasp.sim.object_model import (
     MAX_COLLISION_PIECES,
-    ObjectLibrary,
     ObjectModel,
     default_cache_dir,
-    generate_procedural,
-    load_mesh,
-    pybullet_data_models,
     split_of,
-    user_models,
 )
+from heapgrasp.sim.objects import ObjectLibrary, pybullet_data_models, user_models
+from heapgrasp.sim.procedural import generate_procedural
 
 DATA = Path(pybullet_data.getDataPath())
 
@@ -118,7 +116,7 @@ def test_procedural_is_deterministic_and_idempotent(tmp_path: Path) -> None:
 
 
 def test_procedural_manifest_skips_regeneration(tmp_path: Path, monkeypatch) -> None:
-    import heapgrasp.sim.objects as objects
+    import heapgrasp.sim.procedural as procedural
 
     first = generate_procedural(tmp_path, count_per_kind=1, seed=5)
     assert (tmp_path / "procedural/seed5/manifest.json").is_file()
@@ -127,7 +125,7 @@ def test_procedural_manifest_skips_regeneration(tmp_path: Path, monkeypatch) -> 
         raise AssertionError("regenerated although the manifest was valid")
 
     with monkeypatch.context() as m:
-        m.setattr(objects, "_MAKERS", {k: boom for k in objects.PROCEDURAL_KINDS})
+        m.setattr(procedural, "_MAKERS", {k: boom for k in procedural.PROCEDURAL_KINDS})
         assert generate_procedural(tmp_path, count_per_kind=1, seed=5) == first
         # other arguments are another key: regenerated
         with pytest.raises(AssertionError, match="regenerated"):
@@ -136,7 +134,7 @@ def test_procedural_manifest_skips_regeneration(tmp_path: Path, monkeypatch) -> 
     good = first[0].visual_mesh.read_bytes()
     first[0].visual_mesh.write_bytes(good + b"# edited\n")
     with monkeypatch.context() as m:
-        m.setattr(objects, "_MAKERS", {k: boom for k in objects.PROCEDURAL_KINDS})
+        m.setattr(procedural, "_MAKERS", {k: boom for k in procedural.PROCEDURAL_KINDS})
         with pytest.raises(AssertionError, match="regenerated"):
             generate_procedural(tmp_path, count_per_kind=1, seed=5)
     assert generate_procedural(tmp_path, count_per_kind=1, seed=5) == first

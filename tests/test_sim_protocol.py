@@ -10,7 +10,8 @@ import trimesh
 from heapgrasp.loop.metrics import Phase, aggregate, shortest_trajectory_ratio, trajectory_length
 from heapgrasp.loop.protocol import PlanResult, StopReason, run_clutter_removal, stop_reason
 from heapgrasp.sim.gripper import Grasp, GraspOutcome, PandaHand
-from heapgrasp.sim.objects import ObjectLibrary, ObjectModel
+from heapgrasp.sim.object_model import ObjectModel
+from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.robot import SimRobot
 from heapgrasp.sim.truth import SimTruth, top_down_grasp
 from heapgrasp.sim.world import SimWorld

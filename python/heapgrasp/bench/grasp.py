@@ -216,7 +216,7 @@ class _SurfaceDistance:
         self._triangles: dict[str, F64] = {}
 
     def _mesh(self, path: Path) -> F64:
-        from heapgrasp.sim.objects import load_mesh
+        from heapgrasp.sim.mesh_files import load_mesh
 
         key = str(path)
         if key not in self._triangles:

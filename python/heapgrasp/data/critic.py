@@ -64,7 +64,7 @@ class CriticDataConfig:
     views, are the ones it makes when deployed with it. The labelled candidates are the
     planner's own either way."""
     object_seeds: tuple[int, ...] = ()
-    """Seeds of :func:`~heapgrasp.sim.objects.generate_procedural` whose objects join the
+    """Seeds of :func:`~heapgrasp.sim.procedural.generate_procedural` whose objects join the
     benchmark library's train split in the scenes, all of them (``test_fraction = 0``).
     Any seed but 0 makes objects that share no mesh with the benchmark's, so the critic
     sees more shapes without seeing a test object."""
@@ -136,7 +136,7 @@ def scene_data(config: CriticDataConfig, index: int) -> dict[str, Any]:
     from heapgrasp.sim.build import make_body, object_library, scene_world, sim_pipeline
     from heapgrasp.sim.bullet import pb
     from heapgrasp.sim.gripper import MAX_OPENING, Grasp, GraspOutcome, execute_grasp
-    from heapgrasp.sim.objects import generate_procedural
+    from heapgrasp.sim.procedural import generate_procedural
 
     run_config = config.run_config(index)
     seed = config.seed + index

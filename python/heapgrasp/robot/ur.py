@@ -471,7 +471,7 @@ class URArm:
 
         The loop times its paths for the camera (``max_velocity``, ``max_acceleration``);
         the TCP, behind the camera, moves faster where the camera turns. Like the
-        simulated Panda (:func:`heapgrasp.sim.arm.retime_for_arm`) the path is then
+        simulated Panda (:func:`heapgrasp.sim.arm_timing.retime_for_arm`) the path is then
         slowed uniformly by the factor that brings the TCP's and the camera's speeds,
         the TCP's angular speed and acceleration, and the joint speeds (controller IK at
         ~30 Hz) within ``[limits]``; only the timing changes. A path that would need

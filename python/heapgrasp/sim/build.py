@@ -18,7 +18,8 @@ from heapgrasp.perception.segmenters import IdealSegmenter
 from heapgrasp.planning.critic import GraspCritic
 from heapgrasp.planning.views import ViewScorer
 from heapgrasp.planning.volumes import GraspPlanner
-from heapgrasp.sim.objects import ObjectLibrary, ObjectModel, default_cache_dir, user_models
+from heapgrasp.sim.object_model import ObjectModel, default_cache_dir
+from heapgrasp.sim.objects import ObjectLibrary, user_models
 from heapgrasp.sim.optics import DepthModel
 from heapgrasp.sim.robot import Robot, SimCamera, SimRobot
 from heapgrasp.sim.truth import SimTruth
@@ -150,7 +151,8 @@ def sim_camera(config: RunConfig, *, rgb: bool = False) -> SimCamera:
 def make_body(config: RunConfig, world: SimWorld) -> Robot:
     """The free-flying hand or the Panda arm (``config.mount``)."""
     if config.mount == "arm":
-        from heapgrasp.sim.arm import ArmConfig, PandaArm
+        from heapgrasp.sim.arm import PandaArm
+        from heapgrasp.sim.arm_config import ArmConfig
 
         # The arm picks the camera roll about the viewing axis: paths leaving the top of
         # the view sphere would otherwise spin the wrist past its limits.

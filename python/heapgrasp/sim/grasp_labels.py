@@ -40,9 +40,15 @@ from heapgrasp import GraspLabeller
 from heapgrasp.geometry.gripper import GRASP_DEPTH_RANGE, PANDA_HAND, GripperGeometry
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE
 from heapgrasp.sim.bullet import pb
-from heapgrasp.sim.fingers import FINGER_FRICTION, MAX_OPENING, MIN_HELD_WIDTH
-from heapgrasp.sim.gripper import FINGER_JOINT_Z, PANDA_MESHES, TCP_OFFSET
-from heapgrasp.sim.objects import load_mesh
+from heapgrasp.sim.hand import (
+    FINGER_FRICTION,
+    FINGER_JOINT_Z,
+    MAX_OPENING,
+    MIN_HELD_WIDTH,
+    PANDA_MESHES,
+    TCP_OFFSET,
+)
+from heapgrasp.sim.mesh_files import load_mesh
 from heapgrasp.sim.world import SimWorld
 
 __all__ = [
@@ -69,7 +75,7 @@ F64 = npt.NDArray[np.float64]
 #: (the open hand touches something at the pre-grasp pose or on the approach),
 #: ``empty`` (a finger closes on nothing), ``two-objects``, ``not-antipodal`` (a contact
 #: normal outside the friction cone), ``narrow`` (closed below
-#: :data:`~heapgrasp.sim.fingers.MIN_HELD_WIDTH`).
+#: :data:`~heapgrasp.sim.hand.MIN_HELD_WIDTH`).
 REASONS: tuple[str, ...] = tuple(GraspLabeller.reasons())
 
 #: PyBullet's collision margin around a convex mesh shape (the hand's links and the
@@ -134,7 +140,7 @@ def bullet_size(pieces: list[F64] | tuple[F64, ...]) -> float:
 def panda_hand_parts(opening: float = MAX_OPENING) -> dict[str, Any]:
     """The Panda hand as PyBullet collides it, for :class:`heapgrasp.GraspLabeller`:
     the vertices of ``hand.obj`` and of the two ``finger.obj`` of
-    :data:`~heapgrasp.sim.gripper.PANDA_MESHES` (each collided as its convex hull) placed
+    :data:`~heapgrasp.sim.hand.PANDA_MESHES` (each collided as its convex hull) placed
     as :class:`~heapgrasp.sim.gripper.PandaHand`'s URDF places them, in the TCP frame
     with the finger pads ``opening`` apart.
 
@@ -172,7 +178,7 @@ def labeller(
     :class:`~heapgrasp.geometry.gripper.GripperGeometry` as a dict for its boxes);
     default :func:`panda_hand_parts`, the simulated hand. Object ids are the world's
     (:attr:`SimWorld.objects`). Friction is the world's object friction times
-    :data:`~heapgrasp.sim.fingers.FINGER_FRICTION`, as PyBullet combines them.
+    :data:`~heapgrasp.sim.hand.FINGER_FRICTION`, as PyBullet combines them.
     """
     out = GraspLabeller(
         panda_hand_parts() if hand is None else hand,

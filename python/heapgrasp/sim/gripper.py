@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-import pybullet_data
 
 from heapgrasp.robot.grasping import (
     PREGRASP_DISTANCE,
@@ -34,15 +33,21 @@ from heapgrasp.robot.grasping import (
 )
 from heapgrasp.robot.grasping import execute_grasp as robot_execute_grasp
 from heapgrasp.sim.bullet import pb
-from heapgrasp.sim.fingers import FINGER_FRICTION, MAX_OPENING, Fingers
-from heapgrasp.sim.objects import default_cache_dir
-from heapgrasp.sim.robot import Robot
+from heapgrasp.sim.hand import (
+    FINGER_FRICTION,
+    FINGER_JOINT_Z,
+    MAX_OPENING,
+    PANDA_MESHES,
+    TCP_OFFSET,
+    Fingers,
+)
+from heapgrasp.sim.object_model import default_cache_dir
+from heapgrasp.sim.poses import split_pose
+from heapgrasp.sim.robot import Robot, SimRobot
 from heapgrasp.sim.world import SimWorld
 
 __all__ = [
-    "FINGER_JOINT_Z",
     "MAX_OPENING",
-    "PANDA_MESHES",
     "CollisionStage",
     "Grasp",
     "GraspOutcome",
@@ -53,15 +58,6 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
-
-#: Distance from the hand base to the TCP along z, metres.
-TCP_OFFSET = 0.105
-
-#: Distance from the hand base to the finger joints along z, metres.
-FINGER_JOINT_Z = 0.0584
-
-#: The Panda meshes of ``pybullet_data`` (``visual/`` and ``collision/``).
-PANDA_MESHES = Path(pybullet_data.getDataPath()) / "franka_panda" / "meshes"
 
 _HAND_URDF = """<?xml version="1.0"?>
 <robot name="panda_hand_free">
@@ -166,9 +162,7 @@ class PandaHand(Fingers):
 
     # ---------------------------------------------------------------- kinematics
     def _body_pose(self, tcp: FloatArray) -> tuple[list[float], list[float]]:
-        from heapgrasp.sim.world import _split_pose
-
-        return _split_pose(tcp @ self.tcp2body)
+        return split_pose(tcp @ self.tcp2body)
 
     def reset(self, tcp: FloatArray, width: float = MAX_OPENING) -> None:
         """Teleports the hand so its TCP is at ``tcp``, fingers at ``width``."""
@@ -255,8 +249,6 @@ def execute_grasp(
     """Runs one grasp attempt with a simulated hand or arm
     (:func:`heapgrasp.robot.grasping.execute_grasp`, VGN's protocol) and names the object
     held after lifting (:attr:`GraspResult.object_id`)."""
-    from heapgrasp.sim.robot import SimRobot
-
     result = robot_execute_grasp(
         SimRobot(hand),
         grasp,

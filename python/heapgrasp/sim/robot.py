@@ -16,7 +16,7 @@ Both satisfy :class:`Robot` (the simulator's own, physics-shaped protocol).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -25,25 +25,15 @@ from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.gripper import PANDA_HAND, GripperGeometry
 from heapgrasp.geometry.motion import TimedPath
 from heapgrasp.perception.frames import Capture
+from heapgrasp.robot.grasping import HandPart
 from heapgrasp.robot.interfaces import Contact, UnreachableError
+from heapgrasp.sim.arm import PandaArm
+from heapgrasp.sim.arm_timing import JointPathError, retime_for_arm
+from heapgrasp.sim.world import CameraMount, SimFrame, SimWorld
 
-if TYPE_CHECKING:
-    from heapgrasp.robot.grasping import HandPart
-    from heapgrasp.sim.world import SimFrame, SimWorld
-
-__all__ = ["CameraMount", "Robot", "SimArm", "SimCamera", "SimGripper", "SimRobot"]
+__all__ = ["Robot", "SimArm", "SimCamera", "SimGripper", "SimRobot"]
 
 FloatArray = npt.NDArray[np.float64]
-
-
-@runtime_checkable
-class CameraMount(Protocol):
-    """Something that can place the hand-eye camera."""
-
-    def move_camera(self, cam2world: FloatArray) -> FloatArray:
-        """Moves so the camera is at ``cam2world`` (OpenCV axes) as closely as it can;
-        returns the ``cam2world`` actually reached."""
-        ...
 
 
 @runtime_checkable
@@ -157,8 +147,6 @@ class SimArm:
         raises :class:`~heapgrasp.robot.interfaces.UnreachableError` with the clock and
         the camera back at the path's start."""
         kept = True
-        from heapgrasp.sim.arm import JointPathError, PandaArm, retime_for_arm
-
         if isinstance(self.body, PandaArm):
             try:
                 path = retime_for_arm(path, self.body)

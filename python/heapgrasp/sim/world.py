@@ -6,7 +6,7 @@ Frames (see :class:`SimWorld`):
   0.30 m) has its minimum corner at the origin, the table top is the plane z = 0;
 * every object is a PyBullet body whose base frame is its mesh frame
   (``createMultiBody`` with a zero inertial offset), so ``obj2world`` from PyBullet
-  maps the mesh file of :class:`~heapgrasp.sim.objects.ObjectModel` into the world.
+  maps the mesh file of :class:`~heapgrasp.sim.object_model.ObjectModel` into the world.
 
 Ground truth on hot paths comes from the Rust core: silhouettes, labels and ideal
 depth are rendered by :class:`heapgrasp.MeshScene` from the objects' meshes at the
@@ -23,7 +23,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -32,14 +32,16 @@ from heapgrasp import MeshScene
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.sim.bullet import pb
-from heapgrasp.sim.objects import ObjectLibrary, ObjectModel, load_mesh
+from heapgrasp.sim.mesh_files import load_mesh
+from heapgrasp.sim.object_model import ObjectModel
+from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.optics import Category, DepthModel
+from heapgrasp.sim.poses import pose_matrix, split_pose
 
 if TYPE_CHECKING:
     from heapgrasp.geometry.motion import TimedPath
-    from heapgrasp.sim.robot import CameraMount
 
-__all__ = ["CATEGORY_GROUPS", "SimFrame", "SimObject", "SimWorld", "WorldConfig"]
+__all__ = ["CATEGORY_GROUPS", "CameraMount", "SimFrame", "SimObject", "SimWorld", "WorldConfig"]
 
 Layout = Literal["pile", "packed"]
 #: Scene groups of HEAPGrasp §VI-C.
@@ -110,6 +112,16 @@ class SimFrame(Frame):
     depth_ideal: npt.NDArray[np.float32] | None = None
     """Exact depth (m) of the nearest surface, table included (:attr:`depth` is the
     sensor's, after :class:`DepthModel`)."""
+
+
+@runtime_checkable
+class CameraMount(Protocol):
+    """Something that can place the hand-eye camera."""
+
+    def move_camera(self, cam2world: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """Moves so the camera is at ``cam2world`` (OpenCV axes) as closely as it can;
+        returns the ``cam2world`` actually reached."""
+        ...
 
 
 @dataclass
@@ -269,7 +281,7 @@ class SimWorld:
             xy = c + self.rng.uniform(-inner / 2, inner / 2, size=2)
             quat = _random_quaternion(self.rng)
             pos = [float(xy[0]), float(xy[1]), self.config.drop_height]
-            self.spawn(model, _pose(pos, quat), cat)
+            self.spawn(model, pose_matrix(pos, quat), cat)
             self._simulate(0.5)
         self._settle()
         for w in walls:
@@ -284,7 +296,7 @@ class SimWorld:
                 xy = c + self.rng.uniform(-0.09, 0.09, size=2)
                 z = model.extents[2] / 2 + 0.002
                 quat = pb.getQuaternionFromEuler([0.0, 0.0, yaw])
-                obj = self.spawn(model, _pose([xy[0], xy[1], z], quat), cat)
+                obj = self.spawn(model, pose_matrix([xy[0], xy[1], z], quat), cat)
                 pb.performCollisionDetection(physicsClientId=self.client)
                 touching = [
                     o
@@ -346,7 +358,7 @@ class SimWorld:
             rgbaColor=list(color),
             physicsClientId=cid,
         )
-        pos, quat = _split_pose(obj2world)
+        pos, quat = split_pose(obj2world)
         body = pb.createMultiBody(
             model.mass,
             collision,
@@ -398,7 +410,7 @@ class SimWorld:
         """``obj2world`` of an object, from PyBullet."""
         obj = self._get(object_id)
         pos, quat = pb.getBasePositionAndOrientation(obj.body, physicsClientId=self.client)
-        return _pose(pos, quat)
+        return pose_matrix(pos, quat)
 
     def sync(self) -> None:
         """Copies the simulator's object poses into the ground-truth mesh scenes."""
@@ -514,9 +526,9 @@ class SimWorld:
         fps
             Frame rate (Hz); default ``path.fps``.
         mount
-            What carries the camera (:class:`~heapgrasp.sim.robot.CameraMount`): the arm
-            moves so its camera reaches each pose and the frame is taken from the pose it
-            actually reached; default a free-flying camera at exactly the path's poses.
+            What carries the camera (:class:`CameraMount`): the arm moves so its camera
+            reaches each pose and the frame is taken from the pose it actually reached;
+            default a free-flying camera at exactly the path's poses.
         depth, rgb
             Also render sensor depth / PyBullet RGB for every frame (slower).
         """
@@ -584,19 +596,3 @@ def _random_quaternion(rng: np.random.Generator) -> tuple[float, float, float, f
     q = rng.standard_normal(4)
     q /= np.linalg.norm(q)
     return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
-
-
-def _pose(position: Sequence[float], quat_xyzw: Sequence[float]) -> npt.NDArray[np.float64]:
-    m = np.eye(4)
-    m[:3, :3] = np.asarray(pb.getMatrixFromQuaternion(quat_xyzw)).reshape(3, 3)
-    m[:3, 3] = position
-    return m
-
-
-def _split_pose(
-    obj2world: npt.NDArray[np.float64],
-) -> tuple[list[float], list[float]]:
-    from scipy.spatial.transform import Rotation
-
-    quat = Rotation.from_matrix(obj2world[:3, :3]).as_quat()  # x, y, z, w
-    return [float(x) for x in obj2world[:3, 3]], [float(x) for x in quat]

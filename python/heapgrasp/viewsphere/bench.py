@@ -101,7 +101,7 @@ def _objects(
     args: argparse.Namespace, config: ViewsphereConfig
 ) -> tuple[list[Any], dict[str, str]]:
     """The benchmark's objects and the errors of those that cannot be used."""
-    from heapgrasp.sim.objects import default_cache_dir
+    from heapgrasp.sim.object_model import default_cache_dir
     from heapgrasp.viewsphere.objects import stand_ins, user_objects
 
     errors: dict[str, str] = {}

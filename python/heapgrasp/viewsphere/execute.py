@@ -22,19 +22,15 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.sim.objects import (
-    MAX_COLLISION_PIECES,
-    ObjectModel,
-    _clamped_mass,
-    _decomposed,
-    _extents,
-    _is_convex,
-    _mesh_volume,
-    _obj_text,
-    _round,
-    _write_if_changed,
-    default_cache_dir,
-)
+from heapgrasp.sim.decomposition import decomposed as _decomposed
+from heapgrasp.sim.mesh_files import is_convex as _is_convex
+from heapgrasp.sim.mesh_files import mesh_extents as _extents
+from heapgrasp.sim.mesh_files import mesh_volume as _mesh_volume
+from heapgrasp.sim.mesh_files import obj_text as _obj_text
+from heapgrasp.sim.mesh_files import round_vertices as _round
+from heapgrasp.sim.mesh_files import write_if_changed as _write_if_changed
+from heapgrasp.sim.object_model import MAX_COLLISION_PIECES, ObjectModel, default_cache_dir
+from heapgrasp.sim.object_model import clamped_mass as _clamped_mass
 from heapgrasp.viewsphere.grasps import FoundGrasp
 from heapgrasp.viewsphere.objects import Mesh
 

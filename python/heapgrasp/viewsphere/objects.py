@@ -27,7 +27,9 @@ import numpy.typing as npt
 import trimesh
 from trimesh import creation
 
-from heapgrasp.sim.objects import _revolve, load_mesh, user_models
+from heapgrasp.sim.mesh_files import load_mesh
+from heapgrasp.sim.objects import user_models
+from heapgrasp.sim.procedural import revolve as _revolve
 from heapgrasp.viewsphere.protocol import REST_POSES
 
 __all__ = [
@@ -82,7 +84,7 @@ def _sphere(diameter: float) -> trimesh.Trimesh:
 
 def _revolved(profile: list[tuple[float, float]]) -> trimesh.Trimesh:
     """A closed solid of revolution about z from an ``(r, z)`` outline that starts and
-    ends on the axis (:func:`heapgrasp.sim.objects` revolves its profiles the same way)."""
+    ends on the axis (:func:`heapgrasp.sim.procedural.revolve` turns its profiles the same way)."""
     return _revolve(np.asarray(profile, dtype=np.float64))
 
 

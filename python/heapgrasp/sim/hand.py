@@ -1,24 +1,37 @@
-"""The Panda's two fingers, shared by the free-flying hand and the arm.
+"""The Franka Panda hand as both simulated robots carry it: its dimensions, its meshes and
+its two fingers.
 
-Both robots load a body whose two prismatic finger joints are coupled; everything the
-grasp protocol asks of the fingers (open, close force-limited, read the opening, tell
-which object both fingers hold) depends only on that body, its finger joints and the
-world, so it lives here once. A class mixing :class:`Fingers` in sets ``world``,
-``client``, ``body``, ``finger_joints`` and ``finger_force``, and provides ``step``.
+The free-flying hand (:class:`heapgrasp.sim.gripper.PandaHand`) and the arm
+(:class:`heapgrasp.sim.arm.PandaArm`) load a body whose two prismatic finger joints are
+coupled; everything the grasp protocol asks of the fingers (open, close force-limited,
+read the opening, tell which object both fingers hold) depends only on that body, its
+finger joints and the world, so it lives here once. A class mixing :class:`Fingers` in
+sets ``world``, ``client``, ``body``, ``finger_joints`` and ``finger_force``, and provides
+``step``. The hand's dimensions are shared with the grasp labeller
+(:mod:`heapgrasp.sim.grasp_labels`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING
+
+import pybullet_data
 
 from heapgrasp.geometry.gripper import PANDA_HAND
 from heapgrasp.sim.bullet import pb
+from heapgrasp.sim.world import SimWorld
 
-if TYPE_CHECKING:
-    from heapgrasp.sim.world import SimWorld
-
-__all__ = ["FINGER_FRICTION", "MAX_OPENING", "MIN_HELD_WIDTH", "Fingers"]
+__all__ = [
+    "FINGER_FRICTION",
+    "FINGER_JOINT_Z",
+    "MAX_OPENING",
+    "MIN_HELD_WIDTH",
+    "PANDA_MESHES",
+    "TCP_OFFSET",
+    "Fingers",
+]
 
 #: Maximum opening of the Panda hand (m): :data:`heapgrasp.geometry.gripper.PANDA_HAND`.
 MAX_OPENING = PANDA_HAND.max_opening
@@ -29,6 +42,15 @@ FINGER_FRICTION = 1.0
 #: Below this opening (m) the fingers count as shut, holding nothing (VGN's 10 % of the
 #: widest opening, here of each finger's travel).
 MIN_HELD_WIDTH = 0.1 * MAX_OPENING * 0.5
+
+#: Distance from the hand base to the TCP along z, metres.
+TCP_OFFSET = 0.105
+
+#: Distance from the hand base to the finger joints along z, metres.
+FINGER_JOINT_Z = 0.0584
+
+#: The Panda meshes of ``pybullet_data`` (``visual/`` and ``collision/``).
+PANDA_MESHES = Path(pybullet_data.getDataPath()) / "franka_panda" / "meshes"
 
 
 class Fingers:
