@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Rewrite a format-1 grasp dataset (``heapgrasp data grasps`` before the palm origin)
+"""Rewrite a format-1 grasp dataset (``heapgrasp grasps data`` before the palm origin)
 as format 2, without running its scenes again.
 
 Format 1 stored each grasp at its TCP; format 2 stores VGN's grasp origin, the centre

@@ -1,14 +1,14 @@
 #!/usr/bin/env python3
 """How well a grasp network's orientation matches its labels (issue 38 diagnostics).
 
-For the successful grasps of a grasp dataset (``heapgrasp data grasps``), the angle
+For the successful grasps of a grasp dataset (``heapgrasp grasps data``), the angle
 between the network's orientation at the grasp's voxel and the label's, split into the
 **approach axis** (the TCP's z: where the hand comes from) and the **closing axis** (its
 y, folded over the finger swap). The same angle for a network that always approaches
 straight down is printed beside it, as the floor a network has to beat, and the angle between
 each label's approach and the inward normal the input shows at its voxel (the gradient
 of the grid smoothed by a 1-voxel Gaussian: up the occupancy, down the TSDF), which says
-how far the labels' orientation can be read off the input at all. ``train grasps``
+how far the labels' orientation can be read off the input at all. ``grasps train``
 reports the whole rotation angle only; a network whose approach is off collides where
 its quality says it grasps::
 
@@ -48,7 +48,7 @@ def _stats(deg: np.ndarray) -> dict[str, float]:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("network", help="the grasp network's ONNX file")
-    p.add_argument("data", help="a grasp dataset directory (heapgrasp data grasps)")
+    p.add_argument("data", help="a grasp dataset directory (heapgrasp grasps data)")
     p.add_argument("--scenes", type=int, default=60, help="first N scenes (default 60)")
     args = p.parse_args(argv)
     if args.scenes < 1:

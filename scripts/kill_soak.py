@@ -8,8 +8,8 @@ nothing running.
     python scripts/kill_soak.py --target viewsphere --kill parent --kills 20 --out /tmp/soak-vs
 
 ``--target``: ``run`` (``heapgrasp run``; resumed with ``--resume``), ``data-grasps``
-(``heapgrasp data grasps``, one scene per shard; resumed by running it again) or
-``viewsphere`` (``heapgrasp bench viewsphere`` on two stand-in objects; resumed by
+(``heapgrasp grasps data``, one scene per shard; resumed by running it again) or
+``viewsphere`` (``heapgrasp viewsphere bench`` on two stand-in objects; resumed by
 running it again).
 
 1. runs the command uninterrupted into ``OUT/reference``;
@@ -90,8 +90,8 @@ def command(args: argparse.Namespace, out: Path, *, resume: bool) -> list[str]:
     if args.target == "data-grasps":
         return [
             *base,
-            "data",
             "grasps",
+            "data",
             str(out),
             "--scenes",
             str(args.scenes),
@@ -107,8 +107,8 @@ def command(args: argparse.Namespace, out: Path, *, resume: bool) -> list[str]:
         objects, policies = VIEWSPHERE
         return [
             *base,
-            "bench",
             "viewsphere",
+            "bench",
             "--objects",
             objects,
             "--policies",
@@ -193,7 +193,7 @@ def _content(path: Path) -> Any:
 
 
 def _pose_records(out: Path) -> dict[str, Any]:
-    """``bench viewsphere``'s records, keyed by object and pose (every line must parse,
+    """``viewsphere bench``'s records, keyed by object and pose (every line must parse,
     and none may repeat)."""
     found: dict[str, Any] = {}
     for path in sorted((out / "records").glob("*.jsonl")):

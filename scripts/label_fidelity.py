@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """How good is a cheaper view label? Eq. 14 with fewer silhouettes per hypothetical
-trajectory, against the oracle's 10 (the labels of ``heapgrasp data views``).
+trajectory, against the oracle's 10 (the labels of ``heapgrasp views data``).
 
 For each scene of Algorithm 1 (:func:`heapgrasp.data.views.scene_sample`: the same
 scene, waypoints and target for every variant, only the label differs) it reports, per

@@ -1,4 +1,4 @@
-"""``heapgrasp bench viewsphere`` (seed 001's benchmark): outputs, resume, objects from a
+"""``heapgrasp viewsphere bench`` (seed 001's benchmark): outputs, resume, objects from a
 folder, bad input, the sensor model and executing the found grasps."""
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ FAST = ["--workers", "1", "--quiet", "--no-figures", "--set", "bfs_max_sets=40"]
 
 
 def _run(out: Path, *extra: str) -> int:
-    return main(["bench", "viewsphere", "--out", str(out), *FAST, *extra])
+    return main(["viewsphere", "bench", "--out", str(out), *FAST, *extra])
 
 
 def test_a_small_run_writes_results_a_table_and_resumes(tmp_path: Path) -> None:

@@ -20,7 +20,7 @@ from heapgrasp.cli import OPTIONAL_MODULES, build_parser, install_hint, main, pl
         ("torch", ["bench", "seg", "--size", "64x64", "--repeats", "1"], "train"),
         ("cv2", ["robot", "board", "{tmp}/board.png"], "robot"),
         ("cv2", ["robot", "calibrate", "--synthetic", "--out", "{tmp}/cal"], "robot"),
-        ("torch", ["train", "grasps", "{tmp}", "--out", "{tmp}/net"], "train"),
+        ("torch", ["grasps", "train", "{tmp}", "--out", "{tmp}/net"], "train"),
     ],
 )
 def test_a_missing_extra_is_one_line_and_exit_2(
@@ -71,9 +71,10 @@ def test_every_help_is_plain_text() -> None:
         assert "``" not in text and ":mod:`" not in text and ":func:`" not in text, command
         assert "(default: None)" not in text, command
     # each dataset's help describes that dataset (and the shared resume rules) alone
-    views = helps["data views"]
+    views = helps["views data"]
     assert "Algorithm 1" in views and "Poisson(4)" not in views and "2000" not in views
     assert "finished shards are kept" in views
+    assert helps["data views"].count("Algorithm 1") == views.count("Algorithm 1")  # old spelling
     assert "(default: 5)" in helps["sim capture"]  # shown defaults stay shown
 
 

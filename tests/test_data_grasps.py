@@ -281,7 +281,7 @@ def test_cli(
     dataset: tuple[Path, list[dict[str, Any]]], capsys: pytest.CaptureFixture[str]
 ) -> None:
     out, _ = dataset
-    args = ["data", "grasps", str(out), "--scenes", "2", "--seed", "0", "--quiet"]
+    args = ["grasps", "data", str(out), "--scenes", "2", "--seed", "0", "--quiet"]
     args += ["--max-objects", "2", "--workers", "1"]
     assert main([*args, "--shard-size", "1"]) == 0  # every shard there: nothing to run
     summary = json.loads(capsys.readouterr().out)
@@ -292,6 +292,6 @@ def test_cli(
     assert json.loads(capsys.readouterr().out)["complete"]
     assert main([*args, "--shard-size", "2"]) == 2  # refused
     assert "shard_size: 1 there, 2 asked" in capsys.readouterr().err
-    assert main(["data", "grasps", str(out), "--scenes", "0"]) == 2
+    assert main(["grasps", "data", str(out), "--scenes", "0"]) == 2
     assert "--scenes" in capsys.readouterr().err
-    assert main(["data", "grasps", str(out), "--split", "holdout"]) == 2
+    assert main(["grasps", "data", str(out), "--split", "holdout"]) == 2

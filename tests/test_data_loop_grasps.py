@@ -1,5 +1,5 @@
-"""On-policy grasp data (:mod:`heapgrasp.data.loop_grasps`, ``heapgrasp data
-loop-grasps``): the loop's own grids, the network's top grasps labelled on the true
+"""On-policy grasp data (:mod:`heapgrasp.data.loop_grasps`, ``heapgrasp grasps
+loop-data``): the loop's own grids, the network's top grasps labelled on the true
 meshes, in the grasp data's format."""
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[dict[s
 def test_shards_are_grasp_data_that_training_reads(
     dataset: tuple[Path, list[dict[str, Any]]],
 ) -> None:
-    """The grasp data's arrays (``heapgrasp train grasps`` loads them), every sample a
+    """The grasp data's arrays (``heapgrasp grasps train`` loads them), every sample a
     loop phase, and the top candidates indexed, ranked best first, scores falling."""
     from heapgrasp.nets.grasp_data import load_grasp_dataset
 
@@ -156,7 +156,7 @@ def test_bad_settings_are_named(tmp_path: Path) -> None:
 
 def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "d"
-    args = ["data", "loop-grasps", str(out), "--scenes", "1", "--objects", "2", "--points", "20"]
+    args = ["grasps", "loop-data", str(out), "--scenes", "1", "--objects", "2", "--points", "20"]
     assert main([*args, "--top", "2", "--workers", "1", "--quiet"]) == 0
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["complete"] and summary["samples"] >= 1

@@ -126,10 +126,10 @@ def test_bad_settings_are_named() -> None:
 
 def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "d"
-    assert main(["data", "views", str(out), "--scenes", "1", "--workers", "1", "--quiet"]) == 0
+    assert main(["views", "data", str(out), "--scenes", "1", "--workers", "1", "--quiet"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["samples"] + summary["dropped"] == 1 and summary["complete"]
-    assert main(["data", "views", str(out), "--scenes", "0"]) == 2
+    assert main(["views", "data", str(out), "--scenes", "0"]) == 2
     assert "--scenes" in capsys.readouterr().err
     # --ray without Ray: a clear message, not a traceback
     import builtins
@@ -143,11 +143,11 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
 
     builtins.__import__ = no_ray
     try:
-        assert main(["data", "views", str(out), "--scenes", "2", "--ray", "--quiet"]) == 2
+        assert main(["views", "data", str(out), "--scenes", "2", "--ray", "--quiet"]) == 2
     finally:
         builtins.__import__ = real_import
     assert "pip install 'heapgrasp[ray]'" in capsys.readouterr().err
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "shard-00000.npz").write_bytes(b"x")
-    assert main(["data", "views", str(tmp_path / "junk"), "--scenes", "1", "--quiet"]) == 2
+    assert main(["views", "data", str(tmp_path / "junk"), "--scenes", "1", "--quiet"]) == 2
     assert "without a manifest" in capsys.readouterr().err

@@ -199,7 +199,7 @@ def test_run_object_dir_smoke_records_the_dir_and_the_objects(
     assert json.loads((out / "config.json").read_text())["object_dir"] == str(folder)
 
     # An object that cannot be used is skipped by name, the others still run (as in
-    # bench viewsphere); the results already written are not touched.
+    # viewsphere bench); the results already written are not touched.
     written = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     (folder / "broken").mkdir()
     (folder / "broken" / "model.urdf").write_text(

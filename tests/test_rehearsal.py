@@ -197,7 +197,7 @@ def test_the_whole_robot_path_rehearses_from_the_command_line(
 
     # replay plans every phase again from the recorded frames and silhouettes: the same
     # grasps where nothing changed
-    assert main(["replay", str(run)]) == 0
+    assert main(["robot", "replay", str(run)]) == 0
     replayed = json.loads((run / "replay.json").read_text())
     assert replayed["phases_replayed"] == len(record["phases"])
     moved = [r["grasp_moved_m"] for r in replayed["phases"] if r["grasp_moved_m"] is not None]
@@ -273,6 +273,6 @@ def test_a_robot_run_killed_outright_loses_nothing_and_mixes_nothing(tmp_path: P
     assert all(
         r.get("frames_set_aside") in (None, *[f"frames/{a}" for a in aside]) for r in records
     )
-    assert main(["replay", str(run)]) == 0
+    assert main(["robot", "replay", str(run)]) == 0
     replayed = json.loads((run / "replay.json").read_text())
     assert replayed["phases_replayed"] == sum(len(r["phases"]) for r in records)

@@ -161,8 +161,9 @@ def test_replay_plans_the_recorded_phases_again(rig: Rig, tmp_path: Path) -> Non
     changed = replay(out, {"lam": 0.5, "roof_radius": 0.0}, out=tmp_path / "r.json")
     assert "lam: 0.9 -> 0.5" in changed["changes"]
     assert changed["phases_replayed"] == len(record["phases"])
-    assert main(["replay", str(out), "--set", "lam=0.7", "--out", str(tmp_path / "c.json")]) == 0
-    assert main(["replay", str(out), "--set", "lamb=0.7"]) == 2  # a typo is named
+    changes = ["--set", "lam=0.7", "--out", str(tmp_path / "c.json")]
+    assert main(["robot", "replay", str(out), *changes]) == 0
+    assert main(["robot", "replay", str(out), "--set", "lamb=0.7"]) == 2  # a typo is named
     # frames missing or damaged: refused by name, not replayed from what is left
     phase = out / "frames" / "scene_000" / "phase_000"
     first = phase / "000_look.npz"
@@ -340,7 +341,7 @@ def test_replay_refuses_a_simulated_run(tmp_path: Path, capsys: pytest.CaptureFi
     config = RunConfig(method="no-vp", objects=1, layout="packed", max_attempts=1, look_again=0)
     run(config, out, progress=False)
     before = sorted(p.name for p in out.iterdir())
-    assert main(["replay", str(out)]) == 2
+    assert main(["robot", "replay", str(out)]) == 2
     err = capsys.readouterr().err
     assert "no recorded frames" in err and "robot run --execute" in err
     assert sorted(p.name for p in out.iterdir()) == before  # no replay.json

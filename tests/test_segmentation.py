@@ -260,7 +260,7 @@ def test_renderer_is_deterministic_and_labels_match_the_world() -> None:
 
 def test_data_seg_writes_a_folder_seg_train_reads(tmp_path: Path) -> None:
     out = tmp_path / "synth"
-    argv = ["data", "seg", str(out), "--scenes", "2", "--views", "2", "--size", "64x48"]
+    argv = ["seg", "data", str(out), "--scenes", "2", "--views", "2", "--size", "64x48"]
     argv += ["--workers", "1", "--shard-size", "1", "--quiet"]
     assert main(argv) == 0
     folder = seg.SegFolder.open(out)
@@ -304,7 +304,7 @@ def test_seg_cli_errors_exit_2_naming_the_value(
     Image.fromarray(np.zeros((8, 8, 3), np.uint8)).save(img)
     assert main(["seg", "predict", str(tmp_path / "w.onnx"), str(img), "--out", "p"]) == 2
     assert "w.onnx" in capsys.readouterr().err
-    assert main(["data", "seg", str(tmp_path / "d"), "--size", "10x10"]) == 2
+    assert main(["seg", "data", str(tmp_path / "d"), "--size", "10x10"]) == 2
     assert "10x10" in capsys.readouterr().err
 
 

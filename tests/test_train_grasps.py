@@ -1,8 +1,8 @@
 """The grasp network's training (heapgrasp.nets.grasp_data, heapgrasp.nets.train_grasps,
-heapgrasp train grasps): VGN's losses and the gripper's symmetry, the exact
+heapgrasp grasps train): VGN's losses and the gripper's symmetry, the exact
 augmentations, the metrics, exact resume, the exported ONNX file in the planner, and the
 command's errors. A tiny synthetic dataset of 40³ grids in the format of ``heapgrasp
-data grasps`` and tiny networks keep it fast."""
+grasps data`` and tiny networks keep it fast."""
 
 from __future__ import annotations
 
@@ -65,7 +65,7 @@ def write_dataset(
     resolution: int = R,
     grid: str = "occupancy",
 ) -> Path:
-    """A grasp dataset of ``grid`` in the format of ``heapgrasp data grasps``: boxes on
+    """A grasp dataset of ``grid`` in the format of ``heapgrasp grasps data``: boxes on
     the floor of the grid, grasps at voxels over them (successes) and elsewhere."""
     g = np.random.default_rng(seed)
     r = resolution
@@ -405,7 +405,7 @@ def test_train_grasps_command_writes_a_network_the_planner_runs(tmp_path: Path, 
     for split, n, seed in (("train", 4, 1), ("val", 2, 2), ("test", 2, 3)):
         write_dataset(data / split, split=split, n=n, seed=seed, grid="tsdf")
     out = tmp_path / "net"
-    args = ["train", "grasps", str(data), "--out", str(out), "--epochs", "1"]
+    args = ["grasps", "train", str(data), "--out", str(out), "--epochs", "1"]
     assert main([*args, "--batch-size", "4", "--no-progress", *TINY]) == 0
     for name in ("checkpoint.safetensors", "best.safetensors", "metrics.png"):
         assert (out / name).stat().st_size > 0, name
@@ -444,7 +444,7 @@ def test_train_grasps_command_errors_exit_2_naming_the_input(
     tmp_path: Path, root: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = str(tmp_path / "out")
-    base = ["train", "grasps", "--out", out, "--epochs", "1", "--no-progress", *TINY]
+    base = ["grasps", "train", "--out", out, "--epochs", "1", "--no-progress", *TINY]
     tr, va, te = (str(root / k) for k in ("train", "val", "test"))
     (tmp_path / "empty").mkdir()
     shared = str(write_dataset(tmp_path / "shared", split="test", objects=("train-object-1",)))

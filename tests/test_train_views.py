@@ -1,4 +1,4 @@
-"""The view network's training (heapgrasp.nets.train_views, heapgrasp train views): the
+"""The view network's training (heapgrasp.nets.train_views, heapgrasp views train): the
 problem's symmetries proved with the exact scorer, exact resume, the metrics, and the
 command's errors."""
 
@@ -61,7 +61,7 @@ def write_dataset(
     objects: tuple[str, ...] | None = None,
     shard_size: int = 5,
 ) -> Path:
-    """A view dataset in the format of ``heapgrasp data views`` with random contents
+    """A view dataset in the format of ``heapgrasp views data`` with random contents
     (counts, a label map that depends on the grid, poses of the sphere's candidates)."""
     g = np.random.default_rng(seed)
     out.mkdir(parents=True)
@@ -329,7 +329,7 @@ def test_a_killed_training_resumes_to_the_uninterrupted_weights(
 
     def command(out: Path, *extra: str) -> list[str]:
         return [
-            sys.executable, "-m", "heapgrasp", "train", "views", str(datasets["train"]),
+            sys.executable, "-m", "heapgrasp", "views", "train", str(datasets["train"]),
             "--val", str(datasets["val"]), "--out", str(out), "--epochs", "6",
             "--batch-size", "4", "--seed", "3", "--workers", "1", "--no-progress", *extra,
         ]  # fmt: skip
@@ -467,7 +467,7 @@ def test_train_views_command_writes_the_network_and_its_card(
 ) -> None:
     out = tmp_path / "net"
     args = [
-        "train", "views", str(datasets["train"]), "--val", str(datasets["val"]),
+        "views", "train", str(datasets["train"]), "--val", str(datasets["val"]),
         "--test", str(datasets["test"]), "--out", str(out), "--epochs", "1",
         "--batch-size", "6", "--no-progress", "--in-channels", "2",
     ]  # fmt: skip
@@ -487,7 +487,7 @@ def test_train_views_command_errors_exit_2_naming_the_input(
     tmp_path: Path, datasets: dict[str, Path], capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = str(tmp_path / "out")
-    base = ["train", "views", "--out", out, "--epochs", "1", "--no-progress"]
+    base = ["views", "train", "--out", out, "--epochs", "1", "--no-progress"]
     tr, va, te = (str(datasets[k]) for k in ("train", "val", "test"))
     wide = str(write_dataset(tmp_path / "wide", split="val", r=16))
     (tmp_path / "empty").mkdir()

@@ -29,7 +29,7 @@ def _alive(pid: int) -> bool:
 
 def test_pool_workers_die_with_a_killed_parent(tmp_path: Path) -> None:
     exe = Path(sys.executable).with_name("heapgrasp")
-    argv = [str(exe), "data", "views", str(tmp_path / "d"), "--scenes", "40"]
+    argv = [str(exe), "views", "data", str(tmp_path / "d"), "--scenes", "40"]
     parent = subprocess.Popen(
         [*argv, "--shard-size", "1", "--workers", "2", "--quiet"],
         stdout=subprocess.DEVNULL,

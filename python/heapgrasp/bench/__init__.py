@@ -1,7 +1,7 @@
 """Benchmarks behind ``heapgrasp bench``.
 
-Each benchmark is a module with an ``add_parser(subparsers)`` function that registers
-its subcommand (and sets ``func``, the function that runs it, as a parser default):
+Each benchmark is a module with the function that runs it from the parsed options (its
+command line is built in :mod:`heapgrasp.cli.bench`):
 
 * :mod:`heapgrasp.bench.carve` -- ``heapgrasp bench carve``: Shape-from-Silhouette
   carving, the Rust kernel against NumPy, numba and Open3D;
@@ -20,63 +20,8 @@ its subcommand (and sets ``func``, the function that runs it, as a parser defaul
 * :mod:`heapgrasp.bench.paper_tables` -- ``heapgrasp bench noise`` and ``heapgrasp bench
   clutter``: HEAPGrasp's Tables V (mask noise) and IV (clutter) in simulation.
 
-Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`. The viewsphere
-benchmark (``heapgrasp bench viewsphere``) lives with the rest of its system in
-:mod:`heapgrasp.viewsphere`; the command line registers it on the subparsers this
-module's :func:`add_parser` returns.
+Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`, a benchmark
+folder's ``summary.md`` page in :mod:`heapgrasp.bench.pages`. The viewsphere benchmark
+(``heapgrasp viewsphere bench``) lives with the rest of its system in
+:mod:`heapgrasp.viewsphere`.
 """
-
-from __future__ import annotations
-
-import argparse
-
-from heapgrasp.bench import (
-    carve,
-    compare,
-    grasp,
-    paper_tables,
-    seg,
-    sim,
-    topk,
-    world,
-)
-
-__all__ = ["add_parser"]
-
-
-def add_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse._SubParsersAction[argparse.ArgumentParser]:
-    """Adds the ``bench`` command group and its benchmarks to a CLI.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The top-level subparsers of ``heapgrasp``.
-
-    Returns
-    -------
-    argparse._SubParsersAction
-        The ``bench`` group's subparsers: further benchmarks (``bench viewsphere``, ...)
-        register on them the way :func:`heapgrasp.bench.carve.add_parser` does.
-    """
-    p = subparsers.add_parser(
-        "bench",
-        help="benchmarks: the closed loop on the papers' protocols (sim, noise, clutter, "
-        "viewsphere), run comparisons, and the Rust core's speed",
-        description="Benchmarks: the closed loop on the papers' protocols (sim: Tables II/III; "
-        "noise: Table V; clutter: Table IV; viewsphere: the active-vision benchmark), "
-        "comparisons of finished runs, and the speed of the Rust core and the networks.",
-    )
-    benches = p.add_subparsers(
-        dest="benchmark", metavar="BENCHMARK", title="benchmarks", required=True
-    )
-    carve.add_parser(benches)
-    world.add_parser(benches)
-    sim.add_parser(benches)
-    grasp.add_parser(benches)
-    topk.add_parser(benches)
-    compare.add_parser(benches)
-    seg.add_parser(benches)
-    paper_tables.add_parsers(benches)
-    return benches

@@ -44,7 +44,6 @@ import numpy.typing as npt
 from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
 import heapgrasp
-from heapgrasp.bench.argtypes import comma_choices, float_in, int_at_least
 from heapgrasp.bench.scenes import CUBE, CameraSpec, camera_spec, ring, sphere_masks
 
 __all__ = [
@@ -53,7 +52,6 @@ __all__ = [
     "Check",
     "Counts",
     "Result",
-    "add_parser",
     "carve_numba",
     "carve_numpy",
     "compare_counts",
@@ -563,7 +561,7 @@ def run(args: argparse.Namespace) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        The options declared by :func:`add_parser`.
+        The options declared by :func:`heapgrasp.cli.bench.add_carve`.
 
     Returns
     -------
@@ -787,131 +785,3 @@ def format_report(
     else:
         lines.append("counts not checked (the NumPy reference did not run)")
     return "\n".join(lines)
-
-
-# --------------------------------------------------------------------------------------
-# Command line
-# --------------------------------------------------------------------------------------
-
-
-def _sizes(text: str) -> tuple[int, ...]:
-    items = [s.strip() for s in text.split(",") if s.strip()]
-    if not items:
-        raise argparse.ArgumentTypeError("expected comma-separated resolutions, e.g. 40,80")
-    return tuple(int_at_least(1)(s) for s in items)
-
-
-def _images(text: str) -> tuple[tuple[int, int], ...]:
-    out = []
-    for item in (s.strip() for s in text.split(",")):
-        if not item:
-            continue
-        parts = item.lower().split("x")
-        if len(parts) != 2:
-            raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, got {item!r}")
-        out.append((int_at_least(1)(parts[0]), int_at_least(1)(parts[1])))
-    if not out:
-        raise argparse.ArgumentTypeError("expected comma-separated WIDTHxHEIGHT, e.g. 320x240")
-    return tuple(out)
-
-
-def add_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
-    """Adds the ``carve`` subcommand to the ``heapgrasp bench`` group.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subparsers of ``heapgrasp bench``.
-
-    Returns
-    -------
-    argparse.ArgumentParser
-        The ``carve`` parser (its ``func`` default is :func:`run`).
-    """
-    p = subparsers.add_parser(
-        "carve",
-        help="Shape-from-Silhouette carving: Rust kernel vs NumPy / numba / Open3D",
-        description=(
-            "Times OccupancyGrid.integrate_many (Rust) against a plain NumPy reference, "
-            "an @njit(parallel=True) numba loop and Open3D's VoxelGrid.carve_silhouette "
-            "(the last two when installed), all on the same silhouettes: a ring of "
-            "cameras around the 0.30 m workspace cube looking at three spheres (the "
-            "criterion fixtures of benches/). Reports the median time per call, voxel "
-            "projections per second (R^3 x views / time) and the speed-up over NumPy, "
-            "and checks that the Rust and numba counts equal the NumPy reference up to "
-            f"voxels within {BORDER_TOL:g} px of a pixel border (exit status 1 if not)."
-        ),
-        epilog=(
-            "examples:\n"
-            "  heapgrasp bench carve                      # 40,80,160 x 320x240,640x480\n"
-            "  heapgrasp bench carve --quick              # 40,80 x 320x240\n"
-            "  heapgrasp bench carve --sizes 80 --methods rust,numpy --json carve.json"
-        ),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument(
-        "--sizes",
-        type=_sizes,
-        default=None,
-        metavar="R[,R...]",
-        help="grid resolutions R (R^3 voxels), comma-separated (default: 40,80,160)",
-    )
-    p.add_argument(
-        "--images",
-        type=_images,
-        default=None,
-        metavar="WxH[,WxH...]",
-        help="image sizes; fx = fy = 540 * W / 640, principal point at the centre "
-        "(default: 320x240,640x480)",
-    )
-    p.add_argument(
-        "--views",
-        type=int_at_least(1),
-        default=30,
-        metavar="N",
-        help="silhouettes carved per call (default: 30)",
-    )
-    p.add_argument(
-        "--methods",
-        type=comma_choices("method", METHODS),
-        default=METHODS,
-        metavar="M[,M...]",
-        help=f"methods to run, from {','.join(METHODS)} (default: all; numpy is the "
-        "reference for the speed-up and the count check)",
-    )
-    p.add_argument(
-        "--repeats",
-        type=int_at_least(1),
-        default=None,
-        metavar="N",
-        help="timed runs per method and configuration (default: "
-        + ", ".join(f"{k} {v}" for k, v in DEFAULT_REPEATS.items())
-        + "); fewer when --max-seconds is reached",
-    )
-    p.add_argument(
-        "--max-seconds",
-        type=float_in(0.0, open_low=True),
-        default=10.0,
-        metavar="S",
-        help="time budget per method and configuration: no further run starts once "
-        "it would take the total past S seconds; at least one run always happens "
-        "(default: 10)",
-    )
-    p.add_argument(
-        "--quick",
-        action="store_true",
-        help="only 40^3 and 80^3 at 320x240 (explicit --sizes/--images take precedence)",
-    )
-    p.add_argument(
-        "--json",
-        default=None,
-        metavar="PATH",
-        help="also write all timings, checks and machine info as JSON to PATH",
-    )
-    p.add_argument(
-        "--no-progress", action="store_true", help="do not show the progress bar (stderr)"
-    )
-    p.set_defaults(func=run)
-    return p

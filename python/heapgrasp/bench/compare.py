@@ -46,7 +46,7 @@ from heapgrasp.loop.stats import (
     success_interval,
 )
 
-__all__ = ["CompareError", "add_parser", "compare_runs", "format_comparison", "scene_signature"]
+__all__ = ["CompareError", "compare_runs", "format_comparison", "scene_signature"]
 
 
 class CompareError(ValueError):
@@ -224,50 +224,6 @@ def format_comparison(c: dict[str, Any], *, details: bool = False) -> str:
             lines.append("")
             lines.append(format_breakdown(name.upper(), c[name]["breakdown"]))
     return "\n".join(lines)
-
-
-def add_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
-    """Registers ``heapgrasp bench compare``."""
-    p = subparsers.add_parser(
-        "compare",
-        help="two finished runs on the same scenes: success rates with intervals, difference",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("a", type=Path, help="run directory A (holds scenes.jsonl)")
-    p.add_argument("b", type=Path, help="run directory B, the reference")
-    p.add_argument(
-        "--pool",
-        nargs=2,
-        type=Path,
-        action="append",
-        default=[],
-        metavar=("A2", "B2"),
-        help="pool another pair of runs on other seeds into A and B (repeatable)",
-    )
-    p.add_argument("--level", type=float, default=0.95, help="interval level (default 0.95)")
-    p.add_argument(
-        "--resamples", type=int, default=10_000, help="bootstrap resamples (default 10000)"
-    )
-    p.add_argument(
-        "--breakdown",
-        action="store_true",
-        help="also print each run's success per band of the executed grasp's score (the "
-        "critic's probability), per way its viewing ended (early stop after k "
-        "waypoints, or all), per count of candidates and of objects left, with the "
-        "failure outcomes, and its collisions by what and which part of the hand touched",
-    )
-    p.add_argument(
-        "--different-scenes",
-        action="store_true",
-        help="compare even where a seed holds a different scene in A and B (other objects, "
-        "category or layout); refused without it",
-    )
-    p.add_argument("--json", type=Path, help="also write the comparison to this file")
-    p.set_defaults(func=command)
-    return p
 
 
 def command(args: argparse.Namespace) -> int:

@@ -43,8 +43,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.bench.argtypes import comma_choices, float_in, int_at_least
-from heapgrasp.loop.config import CATEGORIES, LAYOUTS, ConfigError, RunConfig
+from heapgrasp.loop.config import ConfigError, RunConfig
 
 if TYPE_CHECKING:
     from heapgrasp.geometry.motion import ViewSphere
@@ -59,7 +58,6 @@ __all__ = [
     "FAR_FROM_OBJECTS_M",
     "GRIDS",
     "GraspBenchConfig",
-    "add_parser",
     "dense_waypoints",
     "markdown_table",
     "run",
@@ -597,95 +595,3 @@ def run(args: argparse.Namespace) -> int:
     print(table)
     print(f"results: {out}")
     return 1 if any(s["errors"] for s in summary.values()) else 0
-
-
-# --------------------------------------------------------------------------------------
-# Command line
-# --------------------------------------------------------------------------------------
-
-
-def add_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
-    """Adds the ``grasp`` subcommand to the ``heapgrasp bench`` group.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subparsers of ``heapgrasp bench``.
-
-    Returns
-    -------
-    argparse.ArgumentParser
-        The ``grasp`` parser (its ``func`` default is :func:`run`).
-    """
-    p = subparsers.add_parser(
-        "grasp",
-        help="the analytic antipodal grasp planner on circle / dense SfS grids, one grasp "
-        "per scene",
-        description=__doc__,
-        epilog=(
-            "examples:\n"
-            "  heapgrasp bench grasp --scenes 5 --grids circle\n"
-            "  heapgrasp bench grasp --scenes 20 --grids circle,dense --out runs/bench-grasp"
-        ),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument(
-        "--scenes", type=int_at_least(1), default=30, metavar="N", help="scenes (default: 30)"
-    )
-    p.add_argument(
-        "--seed",
-        type=int_at_least(0),
-        default=0,
-        metavar="S",
-        help="seed of scene 0; scene i has seed S + i (default: 0)",
-    )
-    p.add_argument("--layout", choices=LAYOUTS, default="pile", help="scene layout (default: pile)")
-    p.add_argument(
-        "--objects",
-        type=int_at_least(1),
-        default=5,
-        metavar="N",
-        help="objects per scene (default: 5)",
-    )
-    p.add_argument(
-        "--category", choices=CATEGORIES, default="mixed", help="scene group (default: mixed)"
-    )
-    p.add_argument(
-        "--grids",
-        type=comma_choices("grid", GRIDS),
-        default=GRIDS,
-        metavar="G[,G...]",
-        help=f"grids to evaluate, from {','.join(GRIDS)} (default: both)",
-    )
-    p.add_argument(
-        "--epsilon",
-        type=float_in(0.0, 1.0),
-        default=None,
-        metavar="E",
-        help="score threshold ε of select_candidates (default: AntipodalPlanner().epsilon)",
-    )
-    p.add_argument(
-        "--sigma",
-        type=float_in(0.0),
-        default=None,
-        metavar="S",
-        help="Gaussian σ (voxels) of select_candidates (default: AntipodalPlanner().sigma)",
-    )
-    p.add_argument(
-        "--roof-radius",
-        type=float_in(0.0, 1.0),
-        default=RunConfig.roof_radius,
-        metavar="R",
-        help=(
-            "disc radius (m) trimming the grids' roofs before planning, as the pipeline "
-            f"does (default {RunConfig.roof_radius}; 0: the untrimmed hull)"
-        ),
-    )
-    p.add_argument(
-        "--out", type=Path, default=None, help="output directory (default runs/bench-grasp-<time>)"
-    )
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=run)
-    return p

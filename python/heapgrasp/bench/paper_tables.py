@@ -23,22 +23,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from heapgrasp.bench.argtypes import int_at_least
 from heapgrasp.bench.pages import write_summary
-from heapgrasp.loop.config import METHODS, ConfigFile, RunConfig, compose, parse_sets, presets
+from heapgrasp.loop.config import ConfigFile, RunConfig, compose, parse_sets
 from heapgrasp.loop.stats import format_interval, success_interval
 
 __all__ = [
     "PAPER_TABLE_IV",
     "PAPER_TABLE_V",
-    "add_parsers",
     "clutter_table",
     "noise_table",
     "run_cells",
@@ -81,108 +78,6 @@ PAPER_TABLE_IV: dict[
 }
 NOISE_LEVELS = (0.01, 0.05, 0.10, 0.15)
 CLUTTER_COUNTS = (6, 8, 10, 12)
-
-
-def _floats(text: str) -> tuple[float, ...]:
-    try:
-        values = tuple(float(t) for t in text.split(",") if t.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a list of numbers: {text!r}") from None
-    bad = [v for v in values if not 0.0 < v <= 0.5]
-    if bad or not values:
-        raise argparse.ArgumentTypeError(f"noise levels must be in (0, 0.5]; got {text!r}")
-    return values
-
-
-def _ints(text: str) -> tuple[int, ...]:
-    try:
-        values = tuple(int(t) for t in text.split(",") if t.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a list of integers: {text!r}") from None
-    if not values or min(values) < 1:
-        raise argparse.ArgumentTypeError(f"object counts must be >= 1; got {text!r}")
-    return values
-
-
-def _methods(text: str) -> tuple[str, ...]:
-    names = tuple(m.strip() for m in text.split(",") if m.strip())
-    bad = [m for m in names if m not in METHODS]
-    if bad or not names:
-        raise argparse.ArgumentTypeError(
-            f"unknown method(s) {bad or '(none)'}; choose among {', '.join(METHODS)}"
-        )
-    return names
-
-
-def _common(p: argparse.ArgumentParser, scenes: int) -> None:
-    p.add_argument(
-        "--scenes",
-        type=int_at_least(1),
-        default=scenes,
-        help=f"scenes per cell (default {scenes}; the paper's Table V is 100 scenes of 5)",
-    )
-    p.add_argument("--seed", type=int_at_least(0), default=0, help="seed of scene 0")
-    p.add_argument(
-        "--config",
-        metavar="FILE|PRESET",
-        help="TOML file of RunConfig fields (every cell), or a shipped preset: "
-        + ", ".join(presets()),
-    )
-    p.add_argument(
-        "--set", action="append", default=[], metavar="KEY=VALUE", help="set a RunConfig field"
-    )
-    p.add_argument(
-        "--workers",
-        type=int_at_least(1),
-        default=os.cpu_count() or 1,
-        help="processes (scenes in parallel)",
-    )
-    p.add_argument("--out", type=Path, help="output directory (default runs/bench-<name>-<time>)")
-    p.add_argument("--resume", action="store_true", help="continue the cells in --out")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
-
-
-def add_parsers(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> None:
-    """Registers ``heapgrasp bench noise`` and ``heapgrasp bench clutter``."""
-    noise = subparsers.add_parser(
-        "noise",
-        help="Table V in simulation: w/o VP under pixel-flip mask noise (MSE, IoU, grasped)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    noise.add_argument(
-        "--levels",
-        type=_floats,
-        default=NOISE_LEVELS,
-        help="comma-separated flip probabilities (default 0.01,0.05,0.10,0.15)",
-    )
-    noise.add_argument(
-        "--methods", type=_methods, default=("no-vp",), help="methods (default no-vp: w/o VP)"
-    )
-    _common(noise, 20)
-    noise.set_defaults(func=noise_command)
-    clutter = subparsers.add_parser(
-        "clutter",
-        help="Table IV in simulation: w/o VP and w/ VP on 6, 8, 10 and 12 mixed objects",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    clutter.add_argument(
-        "--counts",
-        type=_ints,
-        default=CLUTTER_COUNTS,
-        help="comma-separated objects per scene (default 6,8,10,12)",
-    )
-    clutter.add_argument(
-        "--methods",
-        type=_methods,
-        default=("no-vp", "heapgrasp"),
-        help="methods (default no-vp,heapgrasp: w/o VP and w/ VP)",
-    )
-    _common(clutter, 20)
-    clutter.set_defaults(func=clutter_command)
 
 
 def run_cells(

@@ -20,9 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from heapgrasp.bench.argtypes import comma_choices, int_at_least
-
-__all__ = ["ENCODERS", "add_parser", "measure"]
+__all__ = ["ENCODERS", "measure"]
 
 ENCODERS = ("resnet50", "resnet18", "mobilenet_v2")
 
@@ -74,34 +72,3 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=2))
     return 0
-
-
-def _size(text: str) -> str:
-    w, sep, h = text.partition("x")
-    if not (sep and w.isdigit() and h.isdigit() and int(w) > 0 and int(h) > 0):
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, e.g. 320x240, got {text!r}")
-    return text
-
-
-def add_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
-    """Adds ``heapgrasp bench seg``."""
-    p = subparsers.add_parser(
-        "seg",
-        help="CPU time of the segmentation network per frame, per encoder",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument(
-        "--encoders",
-        type=comma_choices("encoder", ENCODERS),
-        default=ENCODERS,
-        help=f"comma-separated encoders (default: {','.join(ENCODERS)})",
-    )
-    p.add_argument("--size", type=_size, default="320x240", help="frame size (default 320x240)")
-    p.add_argument("--threads", type=int_at_least(1), default=1, help="onnxruntime threads")
-    p.add_argument("--repeats", type=int_at_least(1), default=20, help="timed runs (default 20)")
-    p.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
-    p.set_defaults(func=run)
-    return p

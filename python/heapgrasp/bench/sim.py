@@ -18,21 +18,18 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from heapgrasp.bench.argtypes import OBJECT_DIR_HELP, object_dir
 from heapgrasp.bench.pages import write_summary
-from heapgrasp.loop.config import METHODS, ConfigError, ConfigFile, RunConfig, presets
+from heapgrasp.loop.config import METHODS, ConfigError, ConfigFile, RunConfig
 from heapgrasp.loop.stats import format_interval, methods_differences, success_interval
 
 __all__ = [
     "PAPER_TABLE_II",
-    "add_parser",
     "add_uncertainty",
     "markdown_tables",
     "run_bench",
@@ -59,53 +56,6 @@ GROUPS = ("transparent", "opaque", "specular", "mixed")
 def scene_groups(scenes: int) -> list[str]:
     """Scene group of each scene: four equal consecutive blocks (§VI-C)."""
     return [GROUPS[min(3, (4 * i) // scenes)] for i in range(scenes)]
-
-
-def add_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
-    """Registers ``heapgrasp bench sim``."""
-    p = subparsers.add_parser(
-        "sim",
-        help="seed 000's simulation protocol for several methods: Table II/III, Fig. 4/5",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument(
-        "--methods",
-        default="heapgrasp,no-vp,vgn",
-        help=f"comma-separated methods among {', '.join(METHODS)}",
-    )
-    p.add_argument("--scenes", type=int, default=20, help="scenes per method (4 groups)")
-    p.add_argument("--objects", type=int, default=5, help="objects per scene")
-    p.add_argument("--seed", type=int, default=0, help="seed of scene 0")
-    p.add_argument("--layout", choices=("pile", "packed"), default="pile")
-    p.add_argument("--object-dir", metavar="DIR", type=object_dir, help=OBJECT_DIR_HELP)
-    p.add_argument(
-        "--config",
-        metavar="FILE|PRESET",
-        help="TOML file of RunConfig fields (all methods), or a shipped preset: "
-        + ", ".join(presets()),
-    )
-    p.add_argument(
-        "--set", action="append", default=[], metavar="KEY=VALUE", help="set a RunConfig field"
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=os.cpu_count() or 1,
-        help="processes (scenes in parallel)",
-    )
-    p.add_argument("--out", type=Path, help="output directory (default runs/bench-sim-<time>)")
-    p.add_argument(
-        "--resume",
-        action="store_true",
-        help="continue the runs in --out (a finished run only re-renders its tables)",
-    )
-    p.add_argument("--no-figures", action="store_true", help="skip Fig. 4/5")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
-    p.set_defaults(func=command)
-    return p
 
 
 def _configs(

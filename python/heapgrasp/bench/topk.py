@@ -41,7 +41,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.bench.argtypes import comma_choices, int_at_least
 from heapgrasp.loop.config import ConfigError, RunConfig
 
 if TYPE_CHECKING:
@@ -51,7 +50,6 @@ if TYPE_CHECKING:
 __all__ = [
     "PLANNERS",
     "TopKConfig",
-    "add_parser",
     "evaluate_phase",
     "figure_reliability",
     "reliability",
@@ -377,40 +375,3 @@ def run(args: argparse.Namespace) -> int:
     print(table)
     print(f"results: {out}")
     return 1 if any("error" in r for r in records) else 0
-
-
-def add_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
-    """Adds ``heapgrasp bench topk``."""
-    p = subparsers.add_parser(
-        "topk",
-        help="each grasp planner's top-k grasps on the grids the loop meets, labelled on "
-        "the true meshes (does an offline score predict the loop?)",
-        description=__doc__,
-        epilog="example: heapgrasp bench topk --scenes 20 --method no-vp --out runs/topk",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("--scenes", type=int_at_least(1), default=20, metavar="N")
-    p.add_argument(
-        "--seed", type=int_at_least(0), default=80000, metavar="S", help="seed of scene 0"
-    )
-    p.add_argument("--objects", type=int_at_least(1), default=5, metavar="N")
-    p.add_argument(
-        "--method",
-        choices=("heapgrasp", "no-vp"),
-        default="heapgrasp",
-        help="whose views carve the grids (default heapgrasp)",
-    )
-    p.add_argument(
-        "--planners",
-        type=comma_choices("planner", tuple(PLANNERS)),
-        default=tuple(PLANNERS),
-        metavar="P[,P...]",
-        help=f"planners to rank, from {','.join(PLANNERS)} (default: all)",
-    )
-    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="a run setting (repeatable)")
-    p.add_argument("--out", type=Path, default=None, help="output directory")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=run)
-    return p

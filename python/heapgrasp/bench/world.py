@@ -20,33 +20,11 @@ import json
 import math
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["add_parser", "run"]
-
-
-def add_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
-    """Registers ``heapgrasp bench world``."""
-    p = subparsers.add_parser(
-        "world",
-        help="simulated world: ground-truth masks vs PyBullet rendering, seconds per phase",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("--frames", type=int, default=60, help="frames per rendering method")
-    p.add_argument("--phases", type=int, default=5, help="grasp phases to time")
-    p.add_argument(
-        "--camera", choices=("continuous", "still"), default="continuous", help="camera preset"
-    )
-    p.add_argument("--seed", type=int, default=0, help="scene seed")
-    p.add_argument("--json", type=Path, default=None, help="write the results as JSON here")
-    p.set_defaults(func=run)
-    return p
+__all__ = ["run"]
 
 
 def run(args: argparse.Namespace) -> int:

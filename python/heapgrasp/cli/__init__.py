@@ -1,24 +1,40 @@
-"""The ``heapgrasp`` command line.
+"""The ``heapgrasp`` command line: one grammar, noun then verb.
 
-Commands are grouped in subparsers, each group in its own module exposing
-``add_parser(subparsers)``; every leaf command sets ``func``, a callable taking the
-parsed :class:`argparse.Namespace` and returning the exit status::
+Commands are grouped in subparsers, every parser built in a module of this package
+(``add_parser(subparsers)`` adds a group; a command with an old spelling has its own
+function, ``add_VERB(subparsers, name)``, that builds it under either name); every leaf
+command sets ``func``, a callable taking the parsed :class:`argparse.Namespace` and
+returning the exit status. The commands::
 
     heapgrasp run [options]                  simulated pick-and-place (HEAPGrasp, baselines)
     heapgrasp show RUN_DIR                   a run's scene recorded for the Rerun viewer
-    heapgrasp bench carve|world|sim|grasp|topk|compare|viewsphere|seg|noise|clutter
+    heapgrasp bench carve|world|sim|grasp|topk|compare|seg|noise|clutter
                                              benchmarks
     heapgrasp sim capture                    frames of a seeded scene
-    heapgrasp critic data|train|eval         the learned grasp critic
-    heapgrasp data views                     the view network's dataset (Algorithm 1)
-    heapgrasp data grasps                    the grasp network's dataset (VGN's scheme)
-    heapgrasp train views DATA_DIR ...       the view network trained on that dataset
-    heapgrasp train grasps DATA ...          the grasp network trained on grasp datasets
-    heapgrasp seg train|eval|predict|coco    the 4-class segmentation network (DeepLabv3+)
-    heapgrasp robot init|check|board|calibrate|run
+    heapgrasp views data|train               the view network: its dataset (Algorithm 1),
+                                             the network trained on it (eq. 13)
+    heapgrasp grasps data|loop-data|train    the grasp network: its datasets (VGN's scheme,
+                                             the loop's own phases), the network (eq. 11)
+    heapgrasp critic data|train|eval|convert the learned grasp critic
+    heapgrasp seg data|train|eval|predict|coco
+                                             the 4-class segmentation network (DeepLabv3+)
+    heapgrasp viewsphere bench|data|train    seed 001's active-vision benchmark, its
+                                             policies' dataset, its learned policies
+    heapgrasp robot init|check|board|calibrate|run|replay
                                              the real robot (UR + RealSense + Robotiq);
-                                             --sim rehearses it against the simulator
-    heapgrasp replay RUN_DIR                 perception and planning rerun on a robot run
+                                             --sim rehearses it against the simulator,
+                                             replay plans a recorded run again
+
+Old spellings, kept for one release (:mod:`heapgrasp.cli.aliases`): each runs its new
+spelling, with the same options, after one deprecation line on stderr::
+
+    heapgrasp data views|grasps|loop-grasps|seg|viewsphere-paths
+                                             views data, grasps data, grasps loop-data,
+                                             seg data, viewsphere data
+    heapgrasp train views|grasps|viewsphere-policy
+                                             views train, grasps train, viewsphere train
+    heapgrasp bench viewsphere               viewsphere bench
+    heapgrasp replay RUN_DIR                 robot replay
 """
 
 from __future__ import annotations
@@ -33,23 +49,18 @@ __all__ = ["OPTIONAL_MODULES", "build_parser", "install_hint", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """Builds the ``heapgrasp`` argument parser with all command groups.
+    """Builds the ``heapgrasp`` argument parser with all command groups (and the old
+    spellings, :mod:`heapgrasp.cli.aliases`).
 
     Returns
     -------
     argparse.ArgumentParser
         The top-level parser.
     """
-    from heapgrasp import __version__, bench
-    from heapgrasp.cli import critic as critic_cli
-    from heapgrasp.cli import data as data_cli
-    from heapgrasp.cli import robot as robot_cli
-    from heapgrasp.cli import run as run_cli
-    from heapgrasp.cli import seg as seg_cli
-    from heapgrasp.cli import show as show_cli
-    from heapgrasp.cli import sim as sim_cli
-    from heapgrasp.cli import train as train_cli
-    from heapgrasp.viewsphere import bench as viewsphere_bench
+    from heapgrasp import __version__
+    from heapgrasp.cli import aliases, critic, grasps, robot, run, seg, show, sim, views
+    from heapgrasp.cli import bench as bench_cli
+    from heapgrasp.cli import viewsphere as viewsphere_cli
 
     parser = argparse.ArgumentParser(
         prog="heapgrasp",
@@ -64,17 +75,17 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(
         dest="command", metavar="COMMAND", title="commands", required=True
     )
-    run_cli.add_parser(commands)
-    show_cli.add_parser(commands)
-    benches = bench.add_parser(commands)
-    viewsphere_bench.add_parser(benches)
-    sim_cli.add_parser(commands)
-    critic_cli.add_parser(commands)
-    data_cli.add_parser(commands)
-    train_cli.add_parser(commands)
-    seg_cli.add_parser(commands)
-    robot_cli.add_parser(commands)
-    robot_cli.add_replay_parser(commands)
+    run.add_parser(commands)
+    show.add_parser(commands)
+    benches = bench_cli.add_parser(commands)
+    sim.add_parser(commands)
+    views.add_parser(commands)
+    grasps.add_parser(commands)
+    critic.add_parser(commands)
+    seg.add_parser(commands)
+    viewsphere_cli.add_parser(commands)
+    robot.add_parser(commands)
+    aliases.add_aliases(commands, {"bench": benches})
     _plain_help(parser)
     return parser
 

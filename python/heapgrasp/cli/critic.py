@@ -26,7 +26,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from heapgrasp.bench.argtypes import float_in, int_at_least
+from heapgrasp.cli.argtypes import float_in, int_at_least
 
 __all__ = ["add_parser"]
 

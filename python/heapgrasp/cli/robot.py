@@ -1,9 +1,10 @@
-"""``heapgrasp robot init|check|board|calibrate|run`` and ``heapgrasp replay``: the real robot.
+"""``heapgrasp robot init|check|board|calibrate|run|replay``: the real robot.
 
 Nothing moves without ``--execute``: ``run`` and ``calibrate`` default to a dry run that
 checks every motion and sends none (``docs/real_robot.md``). ``--sim`` rehearses
 ``check``, ``calibrate`` and ``run`` against the simulator behind the same drivers
-(:mod:`heapgrasp.sim.rehearsal`): nothing is contacted, no host need be set.
+(:mod:`heapgrasp.sim.rehearsal`): nothing is contacted, no host need be set. ``replay``
+plans a recorded run's phases again from its frames, with settings changed.
 """
 
 from __future__ import annotations
@@ -12,11 +13,13 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
 from heapgrasp.loop.config import parse_sets
 
-__all__ = ["ROBOT_TOML", "add_parser", "add_replay_parser"]
+__all__ = ["ROBOT_TOML", "add_parser", "add_replay"]
+
+SubParsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 #: ``heapgrasp robot init``'s template: every table, the defaults, what each key means.
 ROBOT_TOML = """\
@@ -212,8 +215,8 @@ def _run(args: argparse.Namespace) -> int:
     if truth:
         print(
             f"the simulator: {truth['objects_removed']} of {truth['objects_placed']} objects "
-            f"in the bin, {truth['objects_left']} left; try `heapgrasp replay {args.out}` and "
-            f"`heapgrasp show {args.out}`"
+            f"in the bin, {truth['objects_left']} left; try "
+            f"`heapgrasp robot replay {args.out}` and `heapgrasp show {args.out}`"
         )
     return 0
 
@@ -401,17 +404,15 @@ def _sim_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
+def add_parser(subparsers: SubParsers) -> argparse.ArgumentParser:
     """Adds ``heapgrasp robot`` to the CLI."""
     p = subparsers.add_parser(
         "robot",
         help="the real robot: UR e-Series + RealSense + Robotiq 2F-140 (no ROS)",
         description="HEAPGrasp on a real arm (docs/real_robot.md). Start with `robot init`, "
         "then `robot check`, `robot board` and `robot calibrate`, a dry `robot run`, and "
-        "`robot run --execute`. Add --sim to check, calibrate and run to rehearse all of it "
-        "against the simulator first.",
+        "`robot run --execute`; `robot replay` plans a recorded run again. Add --sim to "
+        "check, calibrate and run to rehearse all of it against the simulator first.",
     )
     sub = p.add_subparsers(dest="robot_command", metavar="COMMAND", required=True)
 
@@ -504,15 +505,14 @@ def add_parser(
         help=f"print resolution, {BOARD_DPI[0]} to {BOARD_DPI[1]} (default 300)",
     )
     brd.set_defaults(func=_board)
+    add_replay(sub)
     return p
 
 
-def add_replay_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
-    """Adds ``heapgrasp replay`` to the CLI."""
-    p = subparsers.add_parser(
-        "replay",
+def add_replay(sub: SubParsers, name: str = "replay") -> argparse.ArgumentParser:
+    """Adds ``robot replay`` (under ``name``)."""
+    p = sub.add_parser(
+        name,
         help="rerun perception and planning on a recorded robot run",
         description="Plans every recorded phase of a `robot run --execute` directory again "
         "from its saved frames, with the run's settings changed by --set, and reports per "

@@ -13,7 +13,7 @@ import sys
 import time
 from pathlib import Path
 
-from heapgrasp.bench.argtypes import OBJECT_DIR_HELP, object_dir
+from heapgrasp.cli.argtypes import OBJECT_DIR_HELP, object_dir
 from heapgrasp.loop.config import (
     CATEGORIES,
     GRASP_PLANNERS,

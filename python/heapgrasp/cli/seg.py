@@ -1,9 +1,9 @@
-"""``heapgrasp seg train|eval|predict|coco``: the 4-class segmentation network of HEAPGrasp §V
-(DeepLabv3+; background, transparent, specular, opaque).
+"""``heapgrasp seg data|train|eval|predict|coco``: the 4-class segmentation network of
+HEAPGrasp §V (DeepLabv3+; background, transparent, specular, opaque).
 
 ::
 
-    heapgrasp data seg runs/seg-synth --scenes 500 --views 8       # or your own images
+    heapgrasp seg data runs/seg-synth --scenes 500 --views 8       # or your own images
     heapgrasp seg train runs/seg-synth --out runs/seg-net --encoder resnet50 --epochs 30
     heapgrasp seg eval runs/seg-net/segmentation.onnx runs/seg-heldout
     heapgrasp seg predict runs/seg-net/segmentation.onnx photo1.png photo2.jpg --out preds
@@ -19,6 +19,13 @@ Training and ``eval`` need ``pip install 'heapgrasp[train]'``; ``predict`` runs 
 ONNX file with onnxruntime only. Nothing is downloaded: the encoder starts from random
 weights, or from ``--encoder-weights FILE`` (a local ImageNet checkpoint). Bad
 arguments exit 2 with a message naming them. See docs/segmentation.md.
+
+``heapgrasp seg data``: the segmentation network's dataset (docs/segmentation.md)::
+
+    heapgrasp seg data runs/seg-synth --scenes 500 --views 8 --size 320x240
+
+Rendered RGB images of random scenes and their exact 4-class masks, as ``images/`` and
+``masks/`` PNGs that ``heapgrasp seg train`` reads (:mod:`heapgrasp.data.seg`).
 """
 
 from __future__ import annotations
@@ -28,11 +35,14 @@ import json
 import shlex
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
-from heapgrasp.bench.argtypes import float_in, int_at_least
+from heapgrasp.cli.argtypes import float_in, int_at_least
+from heapgrasp.cli.datasets import dataset_parser, generate_command, section
 
-__all__ = ["add_parser", "size_arg"]
+__all__ = ["add_data", "add_parser", "size_arg"]
+
+SubParsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 ENCODERS = ("resnet50", "resnet18", "mobilenet_v2")
 
@@ -201,6 +211,15 @@ def _predict(args: argparse.Namespace) -> int:
     return 0
 
 
+def _data(args: argparse.Namespace) -> int:
+    from heapgrasp.data.seg import SegDataConfig
+
+    height, width = args.size
+    return generate_command(
+        args, SegDataConfig, views=args.views, width=width, height=height, out_dir=args.out
+    )
+
+
 def _coco(args: argparse.Namespace) -> int:
     from heapgrasp.data.coco import CocoError, convert, parse_class_map
 
@@ -223,15 +242,33 @@ def _coco(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Adds ``seg`` and its subcommands."""
+def add_data(sub: SubParsers, name: str = "data") -> argparse.ArgumentParser:
+    """Adds ``seg data`` (under ``name``)."""
+    p = dataset_parser(
+        sub,
+        name,
+        "segmentation data: rendered RGB images and exact 4-class masks (images/, masks/)",
+        section(__doc__, "seg data"),
+        scenes=100,
+        shard_size=10,
+    )
+    p.add_argument("--views", type=int_at_least(1), default=8, help="images per scene (8)")
+    p.add_argument("--size", type=size_arg, default=(240, 320), metavar="WxH", help="(320x240)")
+    p.set_defaults(func=_data)
+    return p
+
+
+def add_parser(commands: SubParsers) -> argparse.ArgumentParser:
+    """Adds ``seg`` and its commands."""
     group = commands.add_parser(
         "seg",
-        help="the 4-class segmentation network: train, eval, predict; COCO labels to masks",
+        help="the 4-class segmentation network: its data, train, eval, predict; COCO labels "
+        "to masks",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sub = group.add_subparsers(dest="seg_command", metavar="COMMAND", required=True)
+    add_data(sub)
     t = sub.add_parser("train", help="train DeepLabv3+ on images and label masks")
     t.add_argument("data", metavar="DATA_DIR", help="folder of images/ and masks/")
     t.add_argument("--out", required=True, metavar="RUN_DIR", help="output directory")
@@ -317,3 +354,4 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="what a category mapped to no class becomes (default: an error naming it)",
     )
     c.set_defaults(func=_coco)
+    return group

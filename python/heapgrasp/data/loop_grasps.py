@@ -26,7 +26,7 @@ index, so a shard re-run is identical):
    - VGN's grasps at ``points`` points of the surface the grid shows, balanced, as
      :mod:`heapgrasp.data.grasps` labels them.
 
-The shards have :mod:`heapgrasp.data.grasps`' format (``heapgrasp train grasps`` reads
+The shards have :mod:`heapgrasp.data.grasps`' format (``heapgrasp grasps train`` reads
 them beside that data), with ``k = −2`` (:data:`LOOP_PHASE`) on every sample and, per
 labelled top candidate, ``top_scene`` (its sample), ``top_rank`` (0 = best),
 ``top_score`` and ``top_label``: the network's precision@k on the loop's grids, which
@@ -95,7 +95,7 @@ def _digest(path: str) -> str:
 
 @dataclass(frozen=True)
 class LoopGraspDataConfig(ShardedConfig):
-    """What ``heapgrasp data loop-grasps`` makes (module docstring)."""
+    """What ``heapgrasp grasps loop-data`` makes (module docstring)."""
 
     shard_size: int = 5
     """Scenes per shard file (each gives one sample per phase, ~4)."""

@@ -62,7 +62,7 @@ def image_stem(scene: int, view: int) -> str:
 
 @dataclass(frozen=True)
 class SegDataConfig(ShardedConfig):
-    """What ``heapgrasp data seg`` makes."""
+    """What ``heapgrasp seg data`` makes."""
 
     views: int = 8
     """Images per scene."""

@@ -289,8 +289,8 @@ class Pipeline:
         """Within the block, :meth:`grasp_candidates` plans as ``config``'s grasp planner
         and critic would (``planner``, ``critic``) on the grid as it stands, with no
         observer told; the pipeline's own are restored after. For measuring other
-        planners on the loop's own grids (``heapgrasp bench topk``, ``heapgrasp data
-        loop-grasps``)."""
+        planners on the loop's own grids (``heapgrasp bench topk``, ``heapgrasp grasps
+        loop-data``)."""
         saved = (self.config, self.grasp_planner, self.critic, self.observer)
         self.config, self.grasp_planner, self.critic = config, planner, critic
         self.observer = None

@@ -123,7 +123,7 @@ def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND)
         if shipped is None:
             raise ConfigError(
                 f"grasp_weights: no grasp network for {grid} grids ships with this version; "
-                f"pass one (heapgrasp train grasps --input {grid} writes it) or use "
+                f"pass one (heapgrasp grasps train --input {grid} writes it) or use "
                 f"grasp_planner = 'antipodal'"
             )
         weights = shipped

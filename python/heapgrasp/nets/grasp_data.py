@@ -2,7 +2,7 @@
 exact augmentations (HEAPGrasp §IV-B eq. 11, VGN's training).
 
 * :func:`load_grasp_dataset` / :func:`find_datasets` / :func:`concatenate` — directories
-  written by ``heapgrasp data grasps`` (``manifest.json`` and ``shard-NNNNN.npz``, the
+  written by ``heapgrasp grasps data`` (``manifest.json`` and ``shard-NNNNN.npz``, the
   layout of :mod:`heapgrasp.data.grasps`), read whole and checked. Only the grid the
   network reads is kept, as it was written: ``occupancy`` (``Ŝ≥λ`` as the loop feeds it:
   0 or Ŝ ∈ [λ, 1]) or ``tsdf`` (float32, 256 KiB a scene at R = 40).
@@ -260,7 +260,7 @@ def _geometry(config: Mapping[str, Any], where: str) -> dict[str, Any]:
 def load_grasp_dataset(
     path: str | os.PathLike[str], *, input_kind: str | None = None, workers: int = 1
 ) -> GraspDataset:
-    """Reads a grasp dataset directory written by ``heapgrasp data grasps``.
+    """Reads a grasp dataset directory written by ``heapgrasp grasps data``.
 
     ``input_kind``: the grid to read, ``occupancy`` or ``tsdf``; None: the one the
     dataset was made with (its manifest's ``config["input"]``; ``occupancy`` in a
@@ -276,7 +276,7 @@ def load_grasp_dataset(
         fmt=DATA_FORMAT,
         version=_DATA_VERSION,
         what="grasp dataset",
-        command="heapgrasp data grasps",
+        command="heapgrasp grasps data",
         error=GraspDataError,
     )
     made = manifest["config"].get("input")
@@ -356,7 +356,7 @@ def find_datasets(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
         if not subs:
             raise GraspDataError(
                 f"{p}: not a grasp dataset (no manifest.json in it or its subdirectories; "
-                f"write one with 'heapgrasp data grasps {p}/train --split train')"
+                f"write one with 'heapgrasp grasps data {p}/train --split train')"
             )
         found += subs
     return found

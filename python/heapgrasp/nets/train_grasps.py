@@ -1,5 +1,5 @@
 """Training the grasp network (HEAPGrasp §IV-B eq. 11, VGN's network and losses) on the
-grasp datasets of ``heapgrasp data grasps``. Needs PyTorch, safetensors and matplotlib:
+grasp datasets of ``heapgrasp grasps data``. Needs PyTorch, safetensors and matplotlib:
 ``pip install 'heapgrasp[train]'``.
 
 **Batches.** A step reads ``batch_size`` scenes (one forward pass each) and takes the
@@ -496,7 +496,7 @@ def train(
         refused.
     init : path-like or None
         Start from these weights (a ``grasp_network.safetensors`` of this size and grid:
-        fine-tuning, e.g. a DAgger round on ``heapgrasp data loop-grasps``) instead of
+        fine-tuning, e.g. a DAgger round on ``heapgrasp grasps loop-data``) instead of
         fresh ones; TrainSetupError when they are not. Their digest is part of what a
         resumed checkpoint must match.
     progress : bool

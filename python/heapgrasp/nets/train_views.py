@@ -1,5 +1,5 @@
 """Training the view network (HEAPGrasp §IV-B, eq. 13) on the view dataset of
-``heapgrasp data views`` (Algorithm 1, exact eq. 14 labels). Needs PyTorch, safetensors
+``heapgrasp views data`` (Algorithm 1, exact eq. 14 labels). Needs PyTorch, safetensors
 and matplotlib: ``pip install 'heapgrasp[train]'``.
 
 * :func:`train` — Adam, a cosine learning rate per step, MSE (default) or BCE on the

@@ -2,7 +2,7 @@
 §IV-B, eq. 12-14).
 
 * :func:`load_view_dataset` / :func:`concatenate` — a directory written by ``heapgrasp
-  data views`` (``manifest.json`` and ``shard-NNNNN.npz``) read whole and checked
+  views data`` (``manifest.json`` and ``shard-NNNNN.npz``) read whole and checked
   against its manifest; the SfS counts stay uint16 in memory (256 KiB a sample at
   R = 40) and become the network's float32 input per batch (:func:`batch_inputs`).
 * :func:`transform_grid` / :func:`transform_scores` — the exact symmetries. The
@@ -232,7 +232,7 @@ def _load_shard(file: Path, expected: int, geo: DataGeometry) -> dict[str, np.nd
 
 
 def load_view_dataset(path: str | os.PathLike[str], *, workers: int = 1) -> ViewDataset:
-    """Reads a view dataset directory written by ``heapgrasp data views``.
+    """Reads a view dataset directory written by ``heapgrasp views data``.
 
     Every shard the manifest lists is read (``workers`` threads decompress them) and
     checked against the manifest's sample count, the config's ``R``, ``U``, ``V`` and the
@@ -245,7 +245,7 @@ def load_view_dataset(path: str | os.PathLike[str], *, workers: int = 1) -> View
         fmt=DATA_FORMAT,
         version=_DATA_VERSION,
         what="view dataset",
-        command="heapgrasp data views",
+        command="heapgrasp views data",
         error=ViewDataError,
     )
     geo = DataGeometry.from_config(manifest["config"], f"{root / 'manifest.json'}")

@@ -125,12 +125,12 @@ class NetworkGraspPlanner:
         self.grasp_origin: str = origin
         """Where a voxel's grasp lies (its file's ``grasp_origin``): ``"palm"``, VGN's
         grasp frame, the centre of the palm's face (the networks trained since
-        ``heapgrasp data grasps`` format 2), or ``"tcp"`` (older files)."""
+        ``heapgrasp grasps data`` format 2), or ``"tcp"`` (older files)."""
         name = self._hparam("gripper", "panda", tuple(GRIPPERS))
         self.gripper: str = name
         """The hand the network's grasps were labelled for (its file's ``gripper``):
         ``"panda"`` (the shipped networks, and files made before the option) or
-        ``"robotiq-2f140"`` (``heapgrasp data grasps --gripper robotiq-2f140``)."""
+        ``"robotiq-2f140"`` (``heapgrasp grasps data --gripper robotiq-2f140``)."""
         hand = GRIPPERS[name]
         self.tcp_offset: float = -hand.palm_front if origin == "palm" else 0.0
         """The TCP's distance ahead of a voxel along the approach (m,

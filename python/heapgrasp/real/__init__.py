@@ -1,4 +1,5 @@
-"""HEAPGrasp on a real robot: the commands behind ``heapgrasp robot`` and ``heapgrasp replay``.
+"""HEAPGrasp on a real robot: the commands behind ``heapgrasp robot`` (``init``, ``check``,
+``board``, ``calibrate``, ``run``, ``replay``).
 
 * :mod:`~heapgrasp.real.setup` — ``robot.toml`` → the loop's settings and a connected
   :class:`~heapgrasp.robot.hardware.HardwareRobot`;

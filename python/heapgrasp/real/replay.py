@@ -1,4 +1,4 @@
-"""``heapgrasp replay RUN_DIR``: perception and planning rerun on a recorded real run.
+"""``heapgrasp robot replay RUN_DIR``: perception and planning rerun on a recorded real run.
 
 Each recorded phase is planned again from its saved frames with the run's settings,
 changed by ``--set`` (a segmentation network, λ, the grasp planner, the critic …): the

@@ -6,7 +6,7 @@ simulator's objects and optics, the Rust core's cloud, visibility and synthesis
 kernels). Its modules, each importing only those listed after it (checked by
 import-linter in ``scripts/check``):
 
-* :mod:`~heapgrasp.viewsphere.bench` -- ``heapgrasp bench viewsphere``: objects × poses
+* :mod:`~heapgrasp.viewsphere.bench` -- ``heapgrasp viewsphere bench``: objects × poses
   on a process pool or Ray, resumable records;
 * :mod:`~heapgrasp.viewsphere.training` -- PCA + LR/LDA and the DQN fitted and exported
   to ONNX (scikit-learn, PyTorch: only training imports it);

@@ -1,4 +1,4 @@
-"""``heapgrasp bench viewsphere``: seed 001's active-vision benchmark (§4.1, §5.1).
+"""``heapgrasp viewsphere bench``: seed 001's active-vision benchmark (§4.1, §5.1).
 
 Each object stands at the table's centre in ``--poses`` poses (the protocol's yaws,
 :func:`~heapgrasp.viewsphere.protocol.protocol_yaws`); from each pose every policy
@@ -63,15 +63,14 @@ from typing import Any
 
 import numpy as np
 
-from heapgrasp.bench.argtypes import add_ray_argument, comma_choices, int_at_least
 from heapgrasp.bench.pages import write_summary
 from heapgrasp.loop.config import parse_sets
 from heapgrasp.loop.records import write_json
-from heapgrasp.viewsphere.episode import LEARNED, POLICIES, SENSORS, PoseTask, run_pose
+from heapgrasp.viewsphere.episode import LEARNED, PoseTask, run_pose
 from heapgrasp.viewsphere.grasps import ViewsphereConfig
 from heapgrasp.viewsphere.report import figures, markdown_table, summarize
 
-__all__ = ["add_parser", "command", "run_bench"]
+__all__ = ["command", "run_bench"]
 
 
 def _read_records(path: Path) -> dict[int, dict[str, Any]]:
@@ -167,8 +166,8 @@ def resolve_weights(policies: Sequence[str], given: Sequence[str]) -> tuple[tupl
             shipped = shipped_policy(model)
             if shipped is None:
                 raise ValueError(
-                    f"no {model} policy ships with this install: train one (heapgrasp train "
-                    f"viewsphere-policy --kind {model}) and pass --weights {model}=FILE"
+                    f"no {model} policy ships with this install: train one (heapgrasp viewsphere "
+                    f"train --kind {model}) and pass --weights {model}=FILE"
                 )
             chosen[model] = str(shipped)
         network = OnnxNetwork(chosen[model], kind="viewsphere-policy", threads=1)
@@ -374,105 +373,6 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
     return results
 
 
-def add_parser(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
-    """Registers ``heapgrasp bench viewsphere``."""
-    from heapgrasp.viewsphere.objects import TEST_OBJECTS, TRAIN_OBJECTS
-
-    p = subparsers.add_parser(
-        "viewsphere",
-        help="seed 001's active-vision benchmark: policies on the viewsphere, success per step",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    some = comma_choices("policy", POLICIES)
-    p.add_argument(
-        "--policies",
-        type=lambda text: POLICIES if text.strip().lower() == "all" else some(text),
-        default=POLICIES,
-        help=f"comma-separated policies among {', '.join(POLICIES)}, or all (the default)",
-    )
-    p.add_argument(
-        "--objects",
-        type=comma_choices("object", (*TEST_OBJECTS, *TRAIN_OBJECTS)),
-        default=tuple(TEST_OBJECTS),
-        metavar="NAMES",
-        help="comma-separated stand-in objects (default: the 12 test objects: "
-        + ", ".join(TEST_OBJECTS)
-        + "; training shapes: "
-        + ", ".join(TRAIN_OBJECTS)
-        + ")",
-    )
-    p.add_argument(
-        "--object-dir",
-        metavar="DIR",
-        type=lambda s: str(Path(s).expanduser().absolute()),
-        help="your objects instead of the stand-ins: each subfolder of DIR holds a "
-        "PyBullet object (model.urdf with its visual and collision meshes, in metres), "
-        "or DIR holds mesh files. An object named like a protocol object (e.g. "
-        "003_cracker_box) takes the protocol's resting pose and yaw range; any other "
-        "rests in its most stable pose, with yaws over 0-359 degrees. An object that "
-        "cannot be used is reported and skipped",
-    )
-    p.add_argument(
-        "--poses",
-        type=int_at_least(1),
-        default=100,
-        help="poses per object, the protocol's first N yaws (1-100, default 100)",
-    )
-    p.add_argument("--seed", type=int, default=0, help="the random policy's seed (default 0)")
-    p.add_argument(
-        "--sensor",
-        choices=SENSORS,
-        default="ideal",
-        help="ideal depth (the paper's), or our depth sensor's model with the object "
-        "opaque, transparent or specular (default ideal)",
-    )
-    p.add_argument(
-        "--no-execute",
-        dest="execute",
-        action="store_false",
-        help="do not execute the found grasps with the simulated hand (faster; only "
-        "the paper's success, a grasp found)",
-    )
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="change a setting of the benchmark: "
-        + ", ".join(f"{k} ({v})" for k, v in ViewsphereConfig().to_dict().items()),
-    )
-    p.add_argument(
-        "--workers",
-        type=int_at_least(1),
-        default=os.cpu_count() or 1,
-        help="processes (object poses in parallel; default: every core)",
-    )
-    add_ray_argument(p, "poses")
-    p.add_argument(
-        "--out",
-        type=Path,
-        default=None,
-        help="output directory (default runs/bench-viewsphere-<time>); an existing one "
-        "with the same settings is continued",
-    )
-    p.add_argument(
-        "--weights",
-        action="append",
-        default=[],
-        metavar="MODEL=FILE",
-        help="a learned policy's file instead of the shipped one (MODEL among "
-        + ", ".join(LEARNED)
-        + "; from heapgrasp train viewsphere-policy)",
-    )
-    p.add_argument("--no-figures", action="store_true", help="skip the plots")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=command)
-    return p
-
-
 #: CPU seconds one pose took for one policy in the full protocol's run (12 objects × 100
 #: poses × 11 policies in 43 min on 2 workers: docs/benchmarks.md).
 SECONDS_PER_POSE_POLICY = 43 * 60 * 2 / (12 * 100 * 11)
@@ -484,14 +384,14 @@ def _duration_note(poses: int, policies: int, workers: int) -> str:
     minutes = poses * policies * SECONDS_PER_POSE_POLICY / max(1, min(workers, poses)) / 60
     about = f"about {minutes:.0f} min" if minutes >= 1 else "under a minute"
     return (
-        f"heapgrasp bench viewsphere: {poses} object pose(s) × {policies} policies to run, "
+        f"heapgrasp viewsphere bench: {poses} object pose(s) × {policies} policies to run, "
         f"{about} on {workers} worker(s) (the full protocol, 12 objects × 100 poses × "
         "11 policies, took 43 min on 2 cores; --poses and --policies run less)"
     )
 
 
 def command(args: argparse.Namespace) -> int:
-    """``heapgrasp bench viewsphere``."""
+    """``heapgrasp viewsphere bench`` (its options: :func:`heapgrasp.cli.viewsphere.add_bench`)."""
     if args.poses > 100:
         print(
             f"heapgrasp: error: --poses must be at most 100 (the protocol's lists), got "

@@ -13,7 +13,7 @@ table it renders the ChArUco board instead (:func:`heapgrasp.robot.calibration.r
 
 Every frame's exact silhouette, rendered at the true pose, is kept by timestamp
 (:class:`Silhouettes`): the simulator's segmenters read it, and the run records it
-beside the frame so that ``heapgrasp replay`` can segment the recording the same way.
+beside the frame so that ``heapgrasp robot replay`` can segment the recording the same way.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
-"""Argument types of the ``heapgrasp bench`` commands (and ``heapgrasp run``): numbers
-checked against a range, refused with a message that names the bad value (argparse
-turns it into exit status 2); the user's object directory."""
+"""Argument types of the ``heapgrasp`` commands: numbers checked against a range, lists
+of names checked against their choices, refused with a message that names the bad value
+(argparse turns it into exit status 2); the user's object directory; ``--ray``."""
 
 from __future__ import annotations
 
