@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from heapgrasp.bench.compare import CompareError, compare_runs
 from heapgrasp.cli import main
-from heapgrasp.loop.stats import success_interval
+from heapgrasp.results.stats import success_interval
 
 
 def _write_run(out: Path, scenes: dict[int, list[tuple[str, float]]]) -> Path:

@@ -80,7 +80,7 @@ def test_a_small_run_writes_results_a_table_and_resumes(tmp_path: Path) -> None:
 def test_a_second_run_into_the_same_folder_is_refused_while_the_first_runs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from heapgrasp.loop.records import RunDir
+    from heapgrasp.results.records import RunDir
 
     out = tmp_path / "run"
     holder = RunDir(out).lock()  # the first run, still going

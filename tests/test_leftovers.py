@@ -14,7 +14,7 @@ from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
 from heapgrasp.loop.config import RunConfig
 from heapgrasp.loop.protocol import StopReason, run_clutter_removal
 from heapgrasp.loop.stages import build_pipeline
-from heapgrasp.loop.summary import leftover_summary
+from heapgrasp.results.summary import leftover_summary
 from heapgrasp.sim.leftovers import describe_leftovers
 from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.optics import Category

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from heapgrasp.cli import main
 from heapgrasp.loop.config import ConfigError, RunConfig
-from heapgrasp.loop.records import RecordError, RunDir, RunLockedError
+from heapgrasp.results.records import RecordError, RunDir, RunLockedError
 from heapgrasp.run import RunExistsError, run
 
 #: Small and fast: two upright objects, one grasp attempt per scene.

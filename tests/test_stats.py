@@ -1,4 +1,4 @@
-"""heapgrasp.loop.stats: Wilson intervals, per-scene counts, paired scene bootstrap."""
+"""heapgrasp.results.stats: Wilson intervals, per-scene counts, paired scene bootstrap."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from heapgrasp.bench.sim import add_uncertainty, markdown_tables
 from heapgrasp.loop.config import RunConfig
-from heapgrasp.loop.stats import (
+from heapgrasp.results.stats import (
     format_interval,
     paired_success_difference,
     scene_counts,

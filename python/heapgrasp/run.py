@@ -10,7 +10,7 @@ directory:
   (``resume=True`` skips the scenes already there);
 * ``results.json`` — the aggregate (:func:`summarize`), rewritten after every scene;
 
-and holds the directory's lock while it runs (:class:`~heapgrasp.loop.records.RunDir`).
+and holds the directory's lock while it runs (:class:`~heapgrasp.results.records.RunDir`).
 
 Scenes run in a process pool when ``workers > 1`` (each worker builds its own
 PyBullet world); a scene that raises is recorded with its error and the run goes on.
@@ -29,7 +29,7 @@ from typing import Any
 
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.methods import method_of
-from heapgrasp.loop.records import (
+from heapgrasp.results.records import (
     CONFIG_FILE,
     RESULTS_FILE,
     SCENES_FILE,
@@ -38,7 +38,7 @@ from heapgrasp.loop.records import (
     RunLockedError,
     write_json,
 )
-from heapgrasp.loop.summary import format_summary, summarize
+from heapgrasp.results.summary import format_summary, summarize
 
 __all__ = [
     "CONFIG_FILE",

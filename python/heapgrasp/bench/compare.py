@@ -7,7 +7,7 @@ scene in both (objects, category, layout: else it refuses, unless
 ``--different-scenes``). Prints, for each run, the
 success rate with its 95 % Wilson interval, the objects removed and the mean trajectory;
 then A's success rate minus B's with a paired bootstrap interval over the common scenes
-(:mod:`heapgrasp.loop.stats`), and A's mean trajectory as a share of B's. ``--json FILE``
+(:mod:`heapgrasp.results.stats`), and A's mean trajectory as a share of B's. ``--json FILE``
 also writes the numbers.
 
 ``--pool A2 B2`` (repeatable) adds another pair of runs on other scenes, e.g. the same
@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from heapgrasp.bench.breakdown import breakdown, format_breakdown
-from heapgrasp.loop.stats import (
+from heapgrasp.results.stats import (
     format_interval,
     paired_success_difference,
     scene_counts,

@@ -31,7 +31,7 @@ from typing import Any
 
 from heapgrasp.bench.pages import write_summary
 from heapgrasp.loop.config import ConfigFile, RunConfig, compose, parse_sets
-from heapgrasp.loop.stats import format_interval, success_interval
+from heapgrasp.results.stats import format_interval, success_interval
 
 __all__ = [
     "PAPER_TABLE_IV",

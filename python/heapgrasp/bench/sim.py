@@ -9,7 +9,7 @@ Writes ``OUT/summary.md`` (the tables with the figures), ``OUT/table.md`` (a Tab
 II-style overall table beside the paper's numbers and
 a Table III-style table per scene group; every success rate with its 95 % interval, and
 each method's difference from no-vp with a paired scene-bootstrap interval,
-:mod:`heapgrasp.loop.stats`), ``OUT/summary.json``, ``OUT/fig5_paths.png``
+:mod:`heapgrasp.results.stats`), ``OUT/summary.json``, ``OUT/fig5_paths.png``
 (camera paths in the x–y plane, as Fig. 5) and ``OUT/fig4_grids.png`` (the measured
 high-confidence grid of one phase with its grasp candidates, as Fig. 4).
 """
@@ -26,7 +26,7 @@ from typing import Any
 
 from heapgrasp.bench.pages import write_summary
 from heapgrasp.loop.config import METHODS, ConfigError, ConfigFile, RunConfig
-from heapgrasp.loop.stats import format_interval, methods_differences, success_interval
+from heapgrasp.results.stats import format_interval, methods_differences, success_interval
 
 __all__ = [
     "PAPER_TABLE_II",
@@ -137,7 +137,7 @@ def add_uncertainty(summaries: dict[str, dict[str, Any]], reference: str = "no-v
     """Adds to every method's summary ``grasp_success_ci95`` (Wilson, percent) and, when
     ``reference`` ran and the summaries hold their ``phases``, ``success_difference``: the
     paired scene-bootstrap difference from ``reference`` in points
-    (:mod:`heapgrasp.loop.stats`)."""
+    (:mod:`heapgrasp.results.stats`)."""
     for s in summaries.values():
         n, k = s.get("grasps_attempted", 0), s.get("grasps_succeeded", 0)
         s["grasp_success_ci95"] = [100 * x for x in success_interval(k, n)] if n else None
@@ -256,7 +256,7 @@ def markdown_tables(summaries: dict[str, dict[str, Any]], base: RunConfig) -> st
         lines += [
             "",
             "Success rate minus no-vp's, in points, with a 95 % interval from resampling the "
-            "scenes both ran (paired bootstrap, `heapgrasp.loop.stats`):",
+            "scenes both ran (paired bootstrap, `heapgrasp.results.stats`):",
             "",
         ]
         for method, d in diffs.items():

@@ -224,8 +224,8 @@ def _run(args: argparse.Namespace) -> int:
 def _page(out: Path) -> list[Path]:
     """``OUT/summary.md`` and ``OUT/summary.png`` from ``OUT/results.json``, as
     ``heapgrasp run`` writes them (the runs so far); none where there is no summary."""
-    from heapgrasp.loop.summary import format_summary
     from heapgrasp.plots import write_run_page
+    from heapgrasp.results.summary import format_summary
 
     try:
         summary = json.loads((out / "results.json").read_text())

@@ -28,7 +28,7 @@ from heapgrasp.loop.config import (
     parse_sets,
     presets,
 )
-from heapgrasp.loop.records import CONFIG_FILE, RunDir
+from heapgrasp.results.records import CONFIG_FILE, RunDir
 
 __all__ = ["add_parser", "config_from_args", "run_command"]
 

@@ -65,8 +65,8 @@ def _open(args: argparse.Namespace, out: Path) -> int:
 def _show_robot_run(args: argparse.Namespace, rundir: object) -> int:
     """``show`` on a robot run's folder: its recorded frames planned again, recorded."""
     from heapgrasp.geometry.grid import GridFrame
-    from heapgrasp.loop.records import RecordError, RunDir
     from heapgrasp.real.replay import replay
+    from heapgrasp.results.records import RecordError, RunDir
     from heapgrasp.robot.errors import RobotError
     from heapgrasp.viz.recorder import RerunRecorder, import_rerun
 
@@ -114,7 +114,7 @@ def _show_robot_run(args: argparse.Namespace, rundir: object) -> int:
 
 def show_command(args: argparse.Namespace) -> int:
     """Runs ``heapgrasp show``; returns the exit status."""
-    from heapgrasp.loop.records import CONFIG_FILE, RecordError, RunDir
+    from heapgrasp.results.records import CONFIG_FILE, RecordError, RunDir
     from heapgrasp.run import run_scene
     from heapgrasp.viz.recorder import import_rerun
 

@@ -233,7 +233,7 @@ class RunConfig:
     scene_memory: bool = _ext(False, "ours")
     """Silhouette methods: each phase starts from what the previous phases carved."""
     stop_below: float = _ext(0.0, "ours")
-    """Early stop (:class:`heapgrasp.loop.policies.EarlyStop`): from the second view
+    """Early stop (:class:`heapgrasp.loop.extensions.EarlyStop`): from the second view
     waypoint on, stop viewing where no candidate's eq. 14 score on the target's column,
     less its detour, reaches this; ``L`` becomes the most waypoints. 0: never."""
     stop_detour_weight: float = _ext(0.0, "ours")
@@ -244,7 +244,7 @@ class RunConfig:
     move_weight: float = _ext(0.0, "ours")
     """Eq. 18 maximises ``s + γ2 h`` less this weight (per metre) times the move's length."""
     sweep_degrees: float = _ext(0.0, "ours")
-    """Rim sweep (:class:`heapgrasp.loop.policies.RimSweep`): a phase that took all ``L``
+    """Rim sweep (:class:`heapgrasp.loop.extensions.RimSweep`): a phase that took all ``L``
     waypoints without stopping early goes on along the rim of the candidates by at most
     this many degrees, until a grasp reaches ``stop_confidence``. 0: never."""
     sweep_step: float = _ext(45.0, "ours")

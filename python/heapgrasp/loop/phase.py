@@ -15,7 +15,7 @@ grasp (footnote 3 of the paper). :class:`Pipeline.plan` runs it:
 3. plan grasps on the final grid: ``heapgrasp`` keeps the target of eq. 16, the
    baselines take the top-scoring grasp.
 
-The extensions (:mod:`heapgrasp.loop.policies`) are asked at fixed points: the early
+The extensions (:mod:`heapgrasp.loop.extensions`) are asked at fixed points: the early
 stop at each view waypoint from the second on, the rim sweep after the last one. Where
 step 3 finds no candidate, the phase looks again (``RunConfig.look_again``): the camera
 moves to the start turned about the scene (:data:`LOOK_AGAIN_TURNS`) and steps 2–3 run
@@ -60,9 +60,9 @@ from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.geometry.motion import MotionLimits, ViewSphere, plan_waypoints, time_path
 from heapgrasp.loop.config import ConfigError, RunConfig
+from heapgrasp.loop.extensions import EarlyStop, RimSweep
 from heapgrasp.loop.methods import Method
 from heapgrasp.loop.observe import PhaseObserver
-from heapgrasp.loop.policies import EarlyStop, RimSweep
 from heapgrasp.loop.protocol import PlanResult
 from heapgrasp.perception.depth import DepthPerception
 from heapgrasp.perception.frames import Capture, Frame
@@ -357,7 +357,7 @@ class Pipeline:
         ``t0``/``t1``: when grasp planning began and ended. ``trusted``: the target may
         steer the view scores (the oracle's target column). With ``stop`` and a target
         it considers, no move is made where it says no candidate is worth one
-        (:class:`~heapgrasp.loop.policies.EarlyStop`). Returns False when it stopped."""
+        (:class:`~heapgrasp.loop.extensions.EarlyStop`). Returns False when it stopped."""
         cfg = self.config
         assert self.view_scorer is not None
         assert isinstance(self.perception, SilhouettePerception)
@@ -435,7 +435,7 @@ class Pipeline:
         return True
 
     def _sweep(self, phase: _PhaseLog, sweep: RimSweep) -> None:
-        """The rim sweep (:class:`~heapgrasp.loop.policies.RimSweep`), capturing, until
+        """The rim sweep (:class:`~heapgrasp.loop.extensions.RimSweep`), capturing, until
         the grasp planned at one of its waypoints is sure."""
         cfg = self.config
         goals = sweep.waypoints(

@@ -38,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from heapgrasp.geometry.camera import CameraSpec
-from heapgrasp.loop.records import write_json
+from heapgrasp.results.records import write_json
 from heapgrasp.robot.calibration import (
     CharucoBoard,
     HandEyeResult,

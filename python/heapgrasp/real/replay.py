@@ -37,11 +37,11 @@ from heapgrasp.geometry.gripper import ROBOTIQ_2F140, GripperGeometry, gripper_n
 from heapgrasp.geometry.motion import TimedPath
 from heapgrasp.loop.config import RunConfig
 from heapgrasp.loop.methods import method_of
-from heapgrasp.loop.records import RunDir, write_json
 from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.perception.segmenters import Segmenter
 from heapgrasp.real.recording import Recorded, RecordedSilhouettes, load_phase, phase_dirs
 from heapgrasp.real.setup import make_segmenter, real_pipeline
+from heapgrasp.results.records import RunDir, write_json
 from heapgrasp.robot.errors import RobotConfigError
 from heapgrasp.robot.grasping import Grasp
 from heapgrasp.robot.interfaces import Contact, UnreachableError

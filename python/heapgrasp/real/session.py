@@ -42,11 +42,11 @@ import numpy.typing as npt
 from heapgrasp.geometry.motion import TimedPath
 from heapgrasp.loop.config import RunConfig
 from heapgrasp.loop.protocol import PlanResult, run_clutter_removal
-from heapgrasp.loop.records import RunDir, write_json
-from heapgrasp.loop.summary import summarize
 from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.real.recording import ArmWrapper, RecordingArm
 from heapgrasp.real.setup import load, open_networks, real_pipeline
+from heapgrasp.results.records import RunDir, write_json
+from heapgrasp.results.summary import summarize
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.errors import RobotConfigError, RobotError
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE, translate

@@ -65,7 +65,7 @@ import numpy as np
 
 from heapgrasp.bench.pages import write_summary
 from heapgrasp.loop.config import parse_sets
-from heapgrasp.loop.records import write_json
+from heapgrasp.results.records import write_json
 from heapgrasp.viewsphere.episode import LEARNED, PoseTask, run_pose
 from heapgrasp.viewsphere.grasps import ViewsphereConfig
 from heapgrasp.viewsphere.report import figures, markdown_table, summarize
@@ -401,7 +401,7 @@ def command(args: argparse.Namespace) -> int:
         return 2
     if args.out is None:
         args.out = Path("runs") / f"bench-viewsphere-{datetime.now():%Y%m%d-%H%M%S}"
-    from heapgrasp.loop.records import RunDir, RunLockedError
+    from heapgrasp.results.records import RunDir, RunLockedError
 
     try:
         # one writer per --out: a second run with the same settings would redo the work

@@ -16,7 +16,7 @@ import numpy as np
 from heapgrasp.loop.config import RunConfig
 from heapgrasp.loop.methods import method_of
 from heapgrasp.loop.metrics import Phase, aggregate
-from heapgrasp.loop.stats import success_interval
+from heapgrasp.results.stats import success_interval
 
 __all__ = ["format_summary", "leftover_summary", "method_label", "summarize"]
 
@@ -163,7 +163,7 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         "view_planner": method_of(config).view_planner,
         "grasp_planner": config.grasp_planner,
         **metrics,
-        # 95 % Wilson interval of the success rate, in percent (heapgrasp.loop.stats).
+        # 95 % Wilson interval of the success rate, in percent (heapgrasp.results.stats).
         "grasp_success_ci95": [100 * x for x in success_interval(k, n)] if n else None,
         "per_scene_group": per_group,
         # removed, knocked out, left, and the leftovers the hand could have taken
