@@ -17,8 +17,8 @@ from scipy import ndimage
 torch = pytest.importorskip("torch")
 
 import heapgrasp as hg  # noqa: E402
-from heapgrasp.geometry.errors import WeightsError  # noqa: E402
 from heapgrasp.geometry.grid import GridFrame  # noqa: E402
+from heapgrasp.inference.errors import WeightsError  # noqa: E402
 from heapgrasp.nets import (  # noqa: E402
     Encoder3d,
     GraspNet,
@@ -400,8 +400,8 @@ def test_a_palm_origin_network_grasps_ahead_of_its_voxel(onnx_files, tmp_path):
     """Networks trained on format-2 data hold VGN's grasp origin, the palm's face: the
     TCP lies -palm_front ahead along the approach, grasps lie in front of the hull
     (within 1.1 finger depths and a voxel), never deep inside it."""
-    from heapgrasp.geometry.errors import WeightsError
     from heapgrasp.geometry.gripper import PANDA_HAND
+    from heapgrasp.inference.errors import WeightsError
     from heapgrasp.nets import export_onnx
 
     net, _ = onnx_files["grasp40"]
@@ -436,8 +436,8 @@ def test_a_palm_origin_network_grasps_ahead_of_its_voxel(onnx_files, tmp_path):
 def test_a_network_for_the_2f140_plans_for_its_hand(onnx_files, tmp_path):
     """A network trained on ``--gripper robotiq-2f140`` data puts the TCP ahead of its
     voxels by that hand's palm; the loop refuses it on a hand that opens less."""
-    from heapgrasp.geometry.errors import WeightsError
     from heapgrasp.geometry.gripper import PANDA_HAND, ROBOTIQ_2F140
+    from heapgrasp.inference.errors import WeightsError
     from heapgrasp.loop.config import ConfigError, RunConfig
     from heapgrasp.loop.stages import make_grasp_planner
     from heapgrasp.nets import export_onnx

@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 import pytest
 from heapgrasp import OccupancyGrid
-from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.inference import (
     META_HPARAMS,
@@ -28,6 +27,7 @@ from heapgrasp.inference import (
     seal,
     shipped_weights,
 )
+from heapgrasp.inference.errors import WeightsError
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.stages import make_grasp_planner, make_view_scorer
 from heapgrasp.planning.critic import CROP_SHAPE, DEFAULT_CRITIC, N_SCALARS, GraspCritic

@@ -15,7 +15,7 @@ import rtde_control
 import rtde_receive
 from heapgrasp.cli import main
 from heapgrasp.geometry.gripper import PANDA_HAND
-from heapgrasp.real.setup import load
+from heapgrasp.real.stages import load
 from heapgrasp.robot.errors import RobotConfigError
 from heapgrasp.sim.rehearsal.controller import SimControl, SimReceive
 from heapgrasp.sim.rehearsal.rig import BASE2WORLD, TRUE_CAM2TCP, Rehearsal

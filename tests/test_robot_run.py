@@ -24,7 +24,7 @@ from heapgrasp.real.calibrate import calibrate_robot, read_taught, world_in_boar
 from heapgrasp.real.check import check
 from heapgrasp.real.replay import replay
 from heapgrasp.real.session import dry_run, execute
-from heapgrasp.real.setup import load
+from heapgrasp.real.stages import load
 from heapgrasp.robot.calibration import CharucoBoard, render_board
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.errors import ProtectiveStop, RobotConfigError

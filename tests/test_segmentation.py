@@ -16,7 +16,7 @@ import pytest
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
 from heapgrasp.cli import main
-from heapgrasp.geometry.errors import WeightsError
+from heapgrasp.inference.errors import WeightsError
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.nets import segmentation as seg
 from heapgrasp.nets.training import read_safetensors

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from heapgrasp.data import shards
 from heapgrasp.data.shards import generate
-from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.inference import OnnxNetwork
+from heapgrasp.inference.errors import WeightsError
 from heapgrasp.viewsphere import data as vp
 from heapgrasp.viewsphere.grasps import SEED001_CAMERA
 from heapgrasp.viewsphere.heuristics import ViewsphereScorer

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from heapgrasp import HeapgraspError
 from heapgrasp.cli import main
-from heapgrasp.geometry.errors import WeightsError
+from heapgrasp.inference.errors import WeightsError
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.stages import make_critic
 from heapgrasp.planning.critic import (

@@ -88,7 +88,7 @@ def _rehearsal(args: argparse.Namespace, *, board: bool = False) -> Any:
     without it. Raises what reading ``robot.toml`` raises."""
     if not getattr(args, "sim", False):
         return None
-    from heapgrasp.real.setup import load
+    from heapgrasp.real.stages import load
     from heapgrasp.sim.rehearsal import Rehearsal
 
     if board:

@@ -197,7 +197,10 @@ class ViewSphere:
 
     A camera at polar angle ``theta`` (from world ``+z``) and azimuth ``phi`` (from world
     ``+x`` toward ``+y``) sits at ``eye = center + radius * (sin(theta) cos(phi),
-    sin(theta) sin(phi), cos(theta))`` and looks at ``target``.
+    sin(theta) sin(phi), cos(theta))`` and looks at ``target``. (The viewsphere
+    benchmark's :class:`heapgrasp.viewsphere.sphere.DiscreteViewsphere` is another
+    sphere, of 20° steps in 8 directions, for another paper; its ``SpherePose.polar`` and
+    ``azimuth`` are this ``theta`` and ``phi``, measured the same way.)
 
     Parameters
     ----------

@@ -64,7 +64,7 @@ def make_segmenter(config: RunConfig, truth: MaskSource | None, seed: int = 0) -
     RGB frames), else the simulator's: exact silhouettes from ``truth``, with pixel-flip
     noise ``config.noise`` where it is > 0 (Table V), which needs ``truth``."""
     if config.segmenter == "network":
-        from heapgrasp.geometry.errors import WeightsError
+        from heapgrasp.inference.errors import WeightsError
         from heapgrasp.perception.segnet import NetworkSegmenter
 
         try:
@@ -152,7 +152,7 @@ def make_critic(config: RunConfig) -> GraspCritic | None:
     source = config.critic
     if source is None:
         return None
-    from heapgrasp.geometry.errors import WeightsError
+    from heapgrasp.inference.errors import WeightsError
 
     path = DEFAULT_CRITIC if source == "default" else Path(source)
     try:
@@ -170,7 +170,7 @@ def _open_network(
     """A network planner opened from ``weights`` on the configured device; a bad file, a
     device that cannot run it or a grid side other than the run's is a ConfigError naming
     ``setting``, before any scene."""
-    from heapgrasp.geometry.errors import WeightsError
+    from heapgrasp.inference.errors import WeightsError
 
     try:
         net = open_(weights, net_device(config))

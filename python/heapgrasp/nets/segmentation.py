@@ -38,8 +38,8 @@ import numpy.typing as npt
 import torch
 from torch import Tensor, nn
 
-from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.inference import Kind, OnnxNetwork, write_atomically
+from heapgrasp.inference.errors import WeightsError
 from heapgrasp.nets.device import resolve_device
 from heapgrasp.nets.training import (
     TrainSetupError,

@@ -18,7 +18,7 @@ tensors and plain Python values (no pickled classes, no code execution on load).
 
 Errors: a missing file raises :class:`FileNotFoundError` (naming the path; weights are
 written by the training command, none ship with this version). Every other bad file
-raises :class:`~heapgrasp.geometry.errors.WeightsError` (a ``ValueError``) whose message
+raises :class:`~heapgrasp.inference.errors.WeightsError` (a ``ValueError``) whose message
 starts with the file's path and says what is wrong; a file is checked whole when it is
 loaded, before any network runs:
 
@@ -47,7 +47,7 @@ import torch
 from torch import nn
 
 import heapgrasp
-from heapgrasp.geometry.errors import WeightsError, check_archive
+from heapgrasp.inference.errors import WeightsError, check_archive
 from heapgrasp.nets.models import GraspNet, ViewNet
 
 __all__ = [
@@ -341,7 +341,7 @@ def load_grasp_net(
     """The :class:`GraspNet` stored in ``path``, on ``device``, in eval mode.
 
     ``resolution``: when given, the stored grid side must equal it. A bad file raises
-    :class:`~heapgrasp.geometry.errors.WeightsError` (module docstring)."""
+    :class:`~heapgrasp.inference.errors.WeightsError` (module docstring)."""
     model = _build(path, "grasp", device)
     assert isinstance(model, GraspNet)
     _check_res(path, model.resolution, resolution)
@@ -357,7 +357,7 @@ def load_view_net(
     """The :class:`ViewNet` stored in ``path``, on ``device``, in eval mode.
 
     ``resolution``: when given, the stored grid side must equal it. A bad file raises
-    :class:`~heapgrasp.geometry.errors.WeightsError` (module docstring)."""
+    :class:`~heapgrasp.inference.errors.WeightsError` (module docstring)."""
     model = _build(path, "view", device)
     assert isinstance(model, ViewNet)
     _check_res(path, model.resolution, resolution)

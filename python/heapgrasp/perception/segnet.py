@@ -20,7 +20,7 @@ reflection to the next multiple and the labels cropped back) and ``input_size`` 
 ``[H, W]`` it was trained at, for information).
 
 Errors: a missing file raises :class:`FileNotFoundError`; any other bad file a
-:class:`~heapgrasp.geometry.errors.WeightsError` whose message starts with the path.
+:class:`~heapgrasp.inference.errors.WeightsError` whose message starts with the path.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ from typing import Any, Final
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.inference import META_HPARAMS, Kind, OnnxNetwork
+from heapgrasp.inference.errors import WeightsError
 from heapgrasp.perception.frames import Frame
 
 __all__ = ["CLASSES", "SEG_KIND", "NetworkSegmenter", "class_fractions", "colorize"]

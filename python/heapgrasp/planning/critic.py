@@ -48,10 +48,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.geometry.errors import WeightsError, check_archive
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.geometry.gripper import PANDA_HAND
 from heapgrasp.inference import OnnxNetwork
+from heapgrasp.inference.errors import WeightsError, check_archive
 from heapgrasp.planning.volumes import GraspCandidate
 
 __all__ = [
@@ -401,7 +401,7 @@ class GraspCritic:
     def load(cls, path: str | os.PathLike[str], *, device: str = "cpu") -> GraspCritic:
         """Reads a critic file (ONNX, ``kind`` ``grasp-critic``), checked whole: a missing
         file raises :class:`FileNotFoundError`, any other bad file a
-        :class:`~heapgrasp.geometry.errors.WeightsError` naming the file and the problem
+        :class:`~heapgrasp.inference.errors.WeightsError` naming the file and the problem
         (:class:`~heapgrasp.inference.OnnxNetwork`; and a model, crop shape, feature
         count, threshold or ε other than this heapgrasp's)."""
         network = OnnxNetwork(path, kind="grasp-critic", device=device)
@@ -442,7 +442,7 @@ def _describe(a: npt.NDArray[Any]) -> str:
 
 def _open_npz(p: Path) -> dict[str, npt.NDArray[Any]]:
     """Every array of the ``.npz`` file ``p``, the file checked first
-    (:func:`~heapgrasp.geometry.errors.check_archive`); the members must be ``.npy``
+    (:func:`~heapgrasp.inference.errors.check_archive`); the members must be ``.npy``
     arrays without pickles."""
     if not p.exists():
         raise FileNotFoundError(f"grasp critic file not found: {p}")
@@ -509,7 +509,7 @@ def read_critic_arrays(
     presence, dtype (floating point), shape and finite values, the scale of each feature
     (> 0: features are divided by it), ``threshold`` and ``candidate_epsilon`` in [0, 1],
     and the metadata (a JSON object whose ``model`` and ``crop_shape`` are this file's).
-    Anything wrong raises :class:`~heapgrasp.geometry.errors.WeightsError` naming ``path``
+    Anything wrong raises :class:`~heapgrasp.inference.errors.WeightsError` naming ``path``
     and what is wrong."""
     p = Path(path)
     arrays = _open_npz(p)

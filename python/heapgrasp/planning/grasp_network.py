@@ -24,10 +24,10 @@ import numpy as np
 import numpy.typing as npt
 from scipy import ndimage
 
-from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.geometry.gripper import GRASP_DEPTH_RANGE, GRIPPERS
 from heapgrasp.inference import OnnxNetwork
+from heapgrasp.inference.errors import WeightsError
 from heapgrasp.planning.volumes import GraspVolumes
 
 __all__ = ["GRASP_ORIGINS", "INPUT_KINDS", "NetworkGraspPlanner", "tsdf_valid", "validate_grid"]
@@ -80,7 +80,7 @@ class NetworkGraspPlanner:
     path : path-like
         The network's ONNX file (``kind`` ``grasp-network``), checked whole when the
         planner is built: a missing file raises :class:`FileNotFoundError`, a bad one a
-        :class:`~heapgrasp.geometry.errors.WeightsError` naming it and the problem.
+        :class:`~heapgrasp.inference.errors.WeightsError` naming it and the problem.
     device : str
         ``cpu``, ``cuda``, ``cuda:N`` or ``auto`` (:func:`heapgrasp.inference.resolve_device`).
 

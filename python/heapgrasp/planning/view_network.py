@@ -30,9 +30,9 @@ import os
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.geometry.errors import WeightsError
 from heapgrasp.geometry.grid import GridFrame
 from heapgrasp.inference import OnnxNetwork
+from heapgrasp.inference.errors import WeightsError
 from heapgrasp.planning.grasp_network import validate_grid
 from heapgrasp.planning.views import ViewContext, target_region
 
@@ -87,7 +87,7 @@ class NetworkViewScorer:
     path : path-like
         The network's ONNX file (``kind`` ``view-network``), checked whole when the
         scorer is built: a missing file raises :class:`FileNotFoundError`, a bad one a
-        :class:`~heapgrasp.geometry.errors.WeightsError` naming it and the problem.
+        :class:`~heapgrasp.inference.errors.WeightsError` naming it and the problem.
     device : str
         ``cpu``, ``cuda``, ``cuda:N`` or ``auto`` (:func:`heapgrasp.inference.resolve_device`).
     target_radius : float

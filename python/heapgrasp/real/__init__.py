@@ -1,7 +1,7 @@
 """HEAPGrasp on a real robot: the commands behind ``heapgrasp robot`` (``init``, ``check``,
 ``board``, ``calibrate``, ``run``, ``replay``).
 
-* :mod:`~heapgrasp.real.setup` — ``robot.toml`` → the loop's settings and a connected
+* :mod:`~heapgrasp.real.stages` — ``robot.toml`` → the loop's settings and a connected
   :class:`~heapgrasp.robot.hardware.HardwareRobot`;
 * :mod:`~heapgrasp.real.recording` — every frame a run captures, saved as it is taken;
 * :mod:`~heapgrasp.real.session` — the dry run (plans one phase, moves nothing) and the

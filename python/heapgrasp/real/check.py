@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from heapgrasp.loop.methods import method_of
-from heapgrasp.real.setup import load, make_segmenter, open_networks
+from heapgrasp.real.stages import load, make_segmenter, open_networks
 from heapgrasp.robot.config import RobotConfig
 from heapgrasp.robot.hardware import Drivers, camera_settings
 from heapgrasp.robot.ur import pose_from_rtde

@@ -40,7 +40,7 @@ from heapgrasp.loop.methods import method_of
 from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.perception.segmenters import Segmenter
 from heapgrasp.real.recording import Recorded, RecordedSilhouettes, load_phase, phase_dirs
-from heapgrasp.real.setup import make_segmenter, real_pipeline
+from heapgrasp.real.stages import make_segmenter, real_pipeline
 from heapgrasp.results.records import RunDir, write_json
 from heapgrasp.robot.errors import RobotConfigError
 from heapgrasp.robot.grasping import Grasp

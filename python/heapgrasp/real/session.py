@@ -44,7 +44,7 @@ from heapgrasp.loop.config import RunConfig
 from heapgrasp.loop.protocol import PlanResult, run_clutter_removal
 from heapgrasp.perception.frames import Capture, Frame
 from heapgrasp.real.recording import ArmWrapper, RecordingArm
-from heapgrasp.real.setup import load, open_networks, real_pipeline
+from heapgrasp.real.stages import load, open_networks, real_pipeline
 from heapgrasp.results.records import RunDir, write_json
 from heapgrasp.results.summary import summarize
 from heapgrasp.robot.config import RobotConfig

@@ -400,7 +400,7 @@ class RobotConfig:
     calibration: CalibrationSettings = field(default_factory=CalibrationSettings)
     networks: NetworkSettings = field(default_factory=NetworkSettings)
     method: Mapping[str, Any] = field(default_factory=dict)
-    """The loop's settings as written; ``heapgrasp.real.setup.run_config`` checks them
+    """The loop's settings as written; ``heapgrasp.real.stages.run_config`` checks them
     (the loop's configuration lives in a layer above this one)."""
     source: str = "robot config"
     """Where it was read from (for messages)."""

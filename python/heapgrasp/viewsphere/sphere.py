@@ -55,7 +55,12 @@ START = SpherePose(math.pi, math.pi / 7)
 
 @dataclass(frozen=True)
 class DiscreteViewsphere:
-    """The viewsphere and its steps (module doc); lengths in metres, angles in radians."""
+    """The viewsphere and its steps (module doc); lengths in metres, angles in radians.
+
+    Not HEAPGrasp's :class:`heapgrasp.geometry.motion.ViewSphere` (eq. 12's continuous
+    U×V candidates): this one moves in fixed 20° steps. Its angles are measured alike:
+    ``polar`` is that class's ``theta`` (from +z), ``azimuth`` its ``phi`` (from +x toward
+    +y)."""
 
     radius: float = 0.40
     step: float = math.radians(20.0)

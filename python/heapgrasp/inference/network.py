@@ -1,262 +1,42 @@
-"""The one way every shipped network runs: an ONNX file, checked whole, run with
-onnxruntime (no PyTorch at run time).
-
-The view network (eq. 13), the grasp network (eq. 11) and the grasp critic are trained
-with PyTorch (``pip install heapgrasp[train]``) and shipped as ONNX files
-(:func:`heapgrasp.nets.export_onnx`, :mod:`heapgrasp.planning.critic_net`).
-:class:`OnnxNetwork` opens one, checks it before any use and runs it on the CPU, or on a
-CUDA device where onnxruntime has the CUDA execution provider (``onnxruntime-gpu``).
-
-**The file.** An ONNX model (opset ≥ 17) with one float32 input whose first axis (the
-batch) is dynamic, and these ``metadata_props``:
-
-=============================  ==========================================================
-``heapgrasp.kind``             ``"view-network"``, ``"grasp-network"``, ``"grasp-critic"``,
-                               ``"viewsphere-policy"`` or ``"segmentation-network"``
-``heapgrasp.format_version``   ``"1"`` (:data:`FORMAT_VERSION`)
-``heapgrasp.hparams``          JSON object: the architecture and what the input must be
-                               (``resolution``, ``in_channels``, ``view_shape``, ...)
-``heapgrasp.provenance``       JSON object: ``command``, ``created``, ``machine``,
-                               ``data``, ``metrics`` (the model card's facts)
-``heapgrasp.sha256``           SHA-256 of the model without its metadata
-                               (:func:`content_digest`; :func:`seal` appends it)
-=============================  ==========================================================
-
-Inputs and outputs by kind (``B`` the batch, ``R`` = ``hparams["resolution"]``,
-``C`` = ``hparams["in_channels"]``):
-
-* ``view-network``: ``grid`` ``(B, C, R, R, R)`` → ``scores`` ``(B, U, V)``,
-  ``(U, V)`` = ``hparams["view_shape"]``;
-* ``grasp-network``: ``grid`` ``(B, C, R, R, R)`` → ``quality`` ``(B, 1, R, R, R)``,
-  ``rotation`` ``(B, 4, R, R, R)``, ``width`` ``(B, 1, R, R, R)``;
-* ``grasp-critic``: ``features`` ``(B, F)`` → ``logits`` ``(B,)``,
-  ``F`` = ``hparams["n_features"]``;
-* ``viewsphere-policy``: ``state`` ``(B, F)`` → ``scores`` ``(B, 8)`` (one per direction
-  of seed 001's viewsphere), ``F`` = ``hparams["n_features"]``;
-* ``segmentation-network``: ``image`` ``(B, 3, H, W)`` → ``logits`` ``(B, K, H, W)``,
-  ``H``, ``W`` dynamic (fully convolutional), ``K`` = ``len(hparams["classes"])``
-  (:class:`heapgrasp.perception.segnet.NetworkSegmenter` checks the rest).
-
-**Errors.** A missing file raises :class:`FileNotFoundError` naming it. Any other bad
-file raises :class:`~heapgrasp.geometry.errors.WeightsError` whose message starts with
-the file's path and says what is wrong: not a file, unreadable, empty, not an ONNX model
-(truncated, garbage, a PyTorch or numpy archive), an ONNX model that is not a heapgrasp
-network (metadata missing or malformed), garbled bytes (the SHA-256 differs: onnxruntime
-would run altered weights without a word), another kind of network, inputs or outputs of
-other names, types or shapes than its ``hparams`` say, a fixed batch axis, or a forward
-pass on an all-zero input that fails or gives NaN or infinity (weights holding NaN).
-"""
+"""The one way every shipped network runs: :class:`OnnxNetwork` (see
+:mod:`heapgrasp.inference`), and the device it runs on (:func:`resolve_device`)."""
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final, Literal
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.geometry.errors import WeightsError
+from heapgrasp.inference.checksum import content_digest
+from heapgrasp.inference.errors import WeightsError
+from heapgrasp.inference.files import (
+    FORMAT_VERSION,
+    META_HPARAMS,
+    META_KIND,
+    META_PROVENANCE,
+    META_SHA256,
+    META_VERSION,
+    Kind,
+    check_kind,
+)
 
 if TYPE_CHECKING:
     import onnxruntime
 
-__all__ = [
-    "FORMAT_VERSION",
-    "KINDS",
-    "META_HPARAMS",
-    "META_KIND",
-    "META_PROVENANCE",
-    "META_SHA256",
-    "META_VERSION",
-    "SHIPPED_FILES",
-    "SHIPPED_VIEWSPHERE_POLICIES",
-    "Kind",
-    "OnnxNetwork",
-    "content_digest",
-    "require_onnx",
-    "resolve_device",
-    "seal",
-    "shipped_weights",
-    "weights_dir",
-    "write_atomically",
-]
+__all__ = ["OnnxNetwork", "resolve_device"]
 
 F32 = npt.NDArray[np.float32]
-
-Kind = Literal[
-    "view-network", "grasp-network", "grasp-critic", "viewsphere-policy", "segmentation-network"
-]
-#: Every kind of network file.
-KINDS: Final = (
-    "view-network",
-    "grasp-network",
-    "grasp-critic",
-    "viewsphere-policy",
-    "segmentation-network",
-)
-#: ``heapgrasp.format_version`` written by this version (files of versions 1 … this load).
-FORMAT_VERSION: Final = 1
-META_KIND: Final = "heapgrasp.kind"
-META_VERSION: Final = "heapgrasp.format_version"
-META_HPARAMS: Final = "heapgrasp.hparams"
-META_PROVENANCE: Final = "heapgrasp.provenance"
-META_SHA256: Final = "heapgrasp.sha256"
-#: The shipped file of each kind, under :func:`weights_dir`.
-SHIPPED_FILES: Final[Mapping[str, str]] = {
-    "view-network": "view_network.onnx",
-    "grasp-network": "grasp_network.onnx",
-    "grasp-critic": "critic.onnx",
-}
-
-#: The shipped viewsphere policies (seed 001's learned policies), by model.
-SHIPPED_VIEWSPHERE_POLICIES: Final[Mapping[str, str]] = {
-    "pca-lr": "viewsphere_pca_lr.onnx",
-    "pca-lda": "viewsphere_pca_lda.onnx",
-    "dqn": "viewsphere_dqn.onnx",
-}
-
-#: The shipped grasp network of each input kind (``hparams["input_kind"]``): the
-#: silhouette methods' ``Ŝ≥λ`` and the VGN baseline's TSDF.
-SHIPPED_GRASP_NETWORKS: Final[Mapping[str, str]] = {
-    "occupancy": "grasp_network.onnx",
-    "tsdf": "grasp_network_tsdf.onnx",
-}
 
 _DEVICE = re.compile(r"cpu|auto|cuda(?::(\d+))?")
 _CUDA = "CUDAExecutionProvider"
 _CPU = "CPUExecutionProvider"
-
-
-def weights_dir() -> Path:
-    """Where shipped weights live: ``<heapgrasp package>/weights``."""
-    return Path(__file__).resolve().parent / "weights"
-
-
-def write_atomically(data: bytes, path: str | os.PathLike[str]) -> Path:
-    """Writes a weights file's bytes to ``path`` through a temporary file and a rename, so
-    the file is whole or absent (the exporters and the critic's writers use it)."""
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return out
-
-
-def require_onnx(purpose: str) -> Any:
-    """The ``onnx`` package (building network files), or an ImportError saying
-    ``purpose`` needs it and how to install it."""
-    try:
-        import onnx
-    except ImportError as exc:  # pragma: no cover - depends on the install
-        raise ImportError(
-            f"{purpose} needs the onnx package: pip install 'heapgrasp[train]'"
-        ) from exc
-    return onnx
-
-
-def shipped_weights(kind: Kind) -> Path | None:
-    """The shipped file of ``kind`` (:data:`SHIPPED_FILES`), or None when none ships
-    (viewsphere policies: :data:`SHIPPED_VIEWSPHERE_POLICIES`)."""
-    _check_kind(kind)
-    if kind not in SHIPPED_FILES:
-        return None
-    p = weights_dir() / SHIPPED_FILES[kind]
-    return p if p.is_file() else None
-
-
-def shipped_grasp_network(input_kind: str) -> Path | None:
-    """The shipped grasp network that reads ``input_kind`` grids
-    (:data:`SHIPPED_GRASP_NETWORKS`), or None when none ships."""
-    if input_kind not in SHIPPED_GRASP_NETWORKS:
-        raise ValueError(
-            f"input_kind must be one of {', '.join(SHIPPED_GRASP_NETWORKS)}; got {input_kind!r}"
-        )
-    p = weights_dir() / SHIPPED_GRASP_NETWORKS[input_kind]
-    return p if p.is_file() else None
-
-
-def _check_kind(kind: str) -> None:
-    if kind not in KINDS:
-        raise ValueError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}")
-
-
-# ----------------------------------------------------------------------------- checksum
-# An ONNX file is a protobuf ModelProto; field 14 holds metadata_props. The checksum covers
-# every other top-level field, so adding it (a field 14 entry) does not change it.
-_METADATA_FIELD = 14
-
-
-def _varint(data: bytes, i: int) -> tuple[int, int]:
-    value, shift = 0, 0
-    while True:
-        if i >= len(data) or shift > 63:
-            raise ValueError("truncated or malformed protobuf varint")
-        b = data[i]
-        value |= (b & 0x7F) << shift
-        i += 1
-        shift += 7
-        if not b & 0x80:
-            return value, i
-
-
-def _encode_varint(value: int) -> bytes:
-    out = bytearray()
-    while True:
-        b = value & 0x7F
-        value >>= 7
-        out.append(b | (0x80 if value else 0))
-        if not value:
-            return bytes(out)
-
-
-def content_digest(data: bytes) -> str:
-    """SHA-256 (hex) of a serialised ONNX model's top-level fields other than its
-    metadata (``metadata_props``), in file order. Raises ``ValueError`` on bytes that are
-    not a protobuf message."""
-    h = hashlib.sha256()
-    i, n = 0, len(data)
-    while i < n:
-        start = i
-        key, i = _varint(data, i)
-        field, wire = key >> 3, key & 7
-        if wire == 0:
-            _, i = _varint(data, i)
-        elif wire == 1:
-            i += 8
-        elif wire == 5:
-            i += 4
-        elif wire == 2:
-            length, i = _varint(data, i)
-            i += length
-        else:
-            raise ValueError(f"unsupported protobuf wire type {wire}")
-        if i > n:
-            raise ValueError("truncated protobuf field")
-        if field != _METADATA_FIELD:
-            h.update(data[start:i])
-    return h.hexdigest()
-
-
-def seal(data: bytes) -> bytes:
-    """``data`` (a serialised ONNX model holding no ``heapgrasp.sha256`` yet) with its
-    :func:`content_digest` appended as the metadata entry ``heapgrasp.sha256``."""
-
-    def field(number: int, payload: bytes) -> bytes:
-        return _encode_varint(number << 3 | 2) + _encode_varint(len(payload)) + payload
-
-    digest = content_digest(data).encode()
-    entry = field(1, META_SHA256.encode()) + field(2, digest)
-    return bytes(data) + field(_METADATA_FIELD, entry)
 
 
 def _ort() -> Any:
@@ -438,7 +218,7 @@ class OnnxNetwork:
         device: str = "cpu",
         threads: int | None = None,
     ) -> None:
-        _check_kind(kind)
+        check_kind(kind)
         self._threads = _check_threads(threads)
         p = Path(path)
         if not p.exists():
@@ -463,7 +243,7 @@ class OnnxNetwork:
     ) -> OnnxNetwork:
         """A network from a serialised ONNX model (a critic just trained, ...), checked
         as a file is; errors name ``name``."""
-        _check_kind(kind)
+        check_kind(kind)
         self = cls.__new__(cls)
         self._threads = _check_threads(threads)
         self._open(Path(name), bytes(data), kind, device)

@@ -1,11 +1,12 @@
-"""Errors shared by layers above geometry that cannot import each other, and the file
-check that raises one.
+"""The error a bad weights file raises, and the archive check that raises it.
 
-:class:`WeightsError` is raised by both :mod:`heapgrasp.nets.weights` (network weights,
-needs PyTorch) and :mod:`heapgrasp.planning.critic` (the grasp critic, plain numpy); it
-lives here, in the lowest layer, so that neither needs the other (nor PyTorch) to raise
-or catch it. Both file formats are zip archives (``torch.save``, ``numpy.savez``):
-:func:`check_archive` reads one whole before either library parses it.
+:class:`WeightsError` is raised wherever a weights file is read: the ONNX networks
+(:mod:`heapgrasp.inference.network`), the grasp critic's arrays
+(:mod:`heapgrasp.planning.critic`) and PyTorch checkpoints (:mod:`heapgrasp.nets.weights`);
+it lives in the lowest layer that reads weights, so that none needs the others (nor
+PyTorch) to raise or catch it. Checkpoints and the critic's arrays are zip archives
+(``torch.save``, ``numpy.savez``): :func:`check_archive` reads one whole before either
+library parses it.
 """
 
 from __future__ import annotations
