@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from heapgrasp import grasp_region, surfel_visibility
 from heapgrasp.perception.clouds import backproject, project
-from heapgrasp.viewsphere.grasps import SEED001_CAMERA
+from heapgrasp.viewsphere.grasps import VIEWSPHERE_CAMERA
 from heapgrasp.viewsphere.heuristics import (
     Heuristic2D,
     Heuristic3D,
@@ -24,7 +24,7 @@ from heapgrasp.viewsphere.policies import (
 from heapgrasp.viewsphere.sphere import DIRECTIONS, DiscreteViewsphere, SpherePose
 
 SPHERE = DiscreteViewsphere()
-SCORER = ViewsphereScorer(SPHERE, SEED001_CAMERA)
+SCORER = ViewsphereScorer(SPHERE, VIEWSPHERE_CAMERA)
 #: The camera west of the object (azimuth π), 40° from above.
 WEST = SpherePose(math.pi, math.radians(40.0))
 
@@ -49,20 +49,20 @@ def _state(pose, obj, unexplored, visited=None):
 
 def test_project_inverts_backproject():
     pose = SPHERE.camera_pose(WEST)
-    depth = np.full((SEED001_CAMERA.height, SEED001_CAMERA.width), 0.4, dtype=np.float32)
+    depth = np.full((VIEWSPHERE_CAMERA.height, VIEWSPHERE_CAMERA.width), 0.4, dtype=np.float32)
     depth[:, :100] = 0.0  # nothing measured there
-    points = backproject(depth, SEED001_CAMERA, pose)
-    u, v, inside = project(points, SEED001_CAMERA, pose)
+    points = backproject(depth, VIEWSPHERE_CAMERA, pose)
+    u, v, inside = project(points, VIEWSPHERE_CAMERA, pose)
     assert inside.all()
-    assert u.min() == 100 and u.max() == SEED001_CAMERA.width - 1
-    assert v.min() == 0 and v.max() == SEED001_CAMERA.height - 1
+    assert u.min() == 100 and u.max() == VIEWSPHERE_CAMERA.width - 1
+    assert v.min() == 0 and v.max() == VIEWSPHERE_CAMERA.height - 1
     # Out of range, behind the camera or off the image: not in view.
     far = pose[:3, 3] + 4.0 * pose[:3, 2]
     behind = pose[:3, 3] - 0.5 * pose[:3, 2]
     aside = pose[:3, 3] + 0.5 * pose[:3, 2] + 2.0 * pose[:3, 0]
-    assert not project(np.array([far, behind, aside]), SEED001_CAMERA, pose)[2].any()
+    assert not project(np.array([far, behind, aside]), VIEWSPHERE_CAMERA, pose)[2].any()
     with pytest.raises(ValueError, match="NaN"):
-        project(np.array([[np.nan, 0.0, 0.0]]), SEED001_CAMERA, pose)
+        project(np.array([[np.nan, 0.0, 0.0]]), VIEWSPHERE_CAMERA, pose)
 
 
 def test_next_views_skip_fallbacks_and_a_double_step_covers_twice_the_arc():

@@ -15,7 +15,7 @@ from heapgrasp.data.shards import generate
 from heapgrasp.inference import OnnxNetwork
 from heapgrasp.inference.errors import WeightsError
 from heapgrasp.viewsphere import data as vp
-from heapgrasp.viewsphere.grasps import SEED001_CAMERA
+from heapgrasp.viewsphere.grasps import VIEWSPHERE_CAMERA
 from heapgrasp.viewsphere.heuristics import ViewsphereScorer
 from heapgrasp.viewsphere.learned import (
     N_FEATURES,
@@ -28,7 +28,7 @@ from heapgrasp.viewsphere.sphere import DIRECTIONS, DiscreteViewsphere, SpherePo
 from heapgrasp.viewsphere.training import DqnConfig, fold_linear, train_dqn, train_linear
 
 SPHERE = DiscreteViewsphere()
-SCORER = ViewsphereScorer(SPHERE, SEED001_CAMERA)
+SCORER = ViewsphereScorer(SPHERE, VIEWSPHERE_CAMERA)
 
 
 def _turn(points: np.ndarray, angle: float) -> np.ndarray:

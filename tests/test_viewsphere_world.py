@@ -7,7 +7,7 @@ import pytest
 import trimesh
 from heapgrasp.viewsphere.policies import BrickPolicy, breadth_first, run_episode
 from heapgrasp.viewsphere.sphere import START
-from heapgrasp.viewsphere.world import SEED001_CAMERA, ViewsphereWorld
+from heapgrasp.viewsphere.world import VIEWSPHERE_CAMERA, ViewsphereWorld
 
 
 def _on_table(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
@@ -17,8 +17,8 @@ def _on_table(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_the_camera_is_seed_001s():
-    assert (SEED001_CAMERA.width, SEED001_CAMERA.height) == (640, 480)
-    fov = 2 * np.arctan(SEED001_CAMERA.width / 2 / SEED001_CAMERA.fx)
+    assert (VIEWSPHERE_CAMERA.width, VIEWSPHERE_CAMERA.height) == (640, 480)
+    fov = 2 * np.arctan(VIEWSPHERE_CAMERA.width / 2 / VIEWSPHERE_CAMERA.fx)
     assert fov == pytest.approx(1.047198, abs=1e-5)
 
 

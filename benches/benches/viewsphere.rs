@@ -1,4 +1,4 @@
-//! Criterion benchmarks of seed 001's cloud and view-scoring kernels
+//! Criterion benchmarks of Natarajan et al.'s cloud and view-scoring kernels
 //! (`heapgrasp_core::viewsphere::clouds`, `heapgrasp_core::viewsphere::visibility`): a 640 × 480 depth view of a
 //! box on a table down-sampled to 7.5 mm voxels, and the 3D heuristic's scoring of 8
 //! next views (1,000 useful points past a box's surfels) and its grasp region.

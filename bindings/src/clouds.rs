@@ -1,4 +1,4 @@
-//! `seen_empty`: which points of seed 001's unexplored region a depth view shows to be
+//! `seen_empty`: which points of Natarajan et al.'s unexplored region a depth view shows to be
 //! empty (`heapgrasp_core::viewsphere::clouds`).
 
 use heapgrasp_core::viewsphere::clouds::{self, SeenParams};

@@ -1,4 +1,4 @@
-//! Seed 001's grasp synthesis on a point cloud (`heapgrasp_core::viewsphere::synthesis`): normals
+//! Natarajan et al.'s grasp synthesis on a point cloud (`heapgrasp_core::viewsphere::synthesis`): normals
 //! and curvature, contact patches, antipodal pairs.
 
 use heapgrasp_core::viewsphere::synthesis::{self, Point};

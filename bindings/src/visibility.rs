@@ -1,4 +1,4 @@
-//! Seed 001's heuristic view scores (`heapgrasp_core::viewsphere::visibility`): the grasp region of
+//! Natarajan et al.'s heuristic view scores (`heapgrasp_core::viewsphere::visibility`): the grasp region of
 //! the unexplored points and their visibility past a surfel reconstruction.
 
 use heapgrasp_core::viewsphere::visibility;

@@ -21,7 +21,7 @@ command line is built in :mod:`heapgrasp.cli.bench`):
   clutter``: HEAPGrasp's Tables V (mask noise) and IV (clutter) in simulation.
 
 Scenes shared by the benchmarks live in :mod:`heapgrasp.bench.scenes`, a benchmark
-folder's ``summary.md`` page in :mod:`heapgrasp.bench.pages`. The viewsphere benchmark
+folder's ``summary.md`` page in :mod:`heapgrasp.results.pages`. The viewsphere benchmark
 (``heapgrasp viewsphere bench``) lives with the rest of its system in
 :mod:`heapgrasp.viewsphere`.
 """

@@ -29,8 +29,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from heapgrasp.bench.pages import write_summary
 from heapgrasp.loop.config import ConfigFile, RunConfig, compose, parse_sets
+from heapgrasp.results.pages import write_summary
 from heapgrasp.results.stats import format_interval, success_interval
 
 __all__ = [

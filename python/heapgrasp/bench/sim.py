@@ -24,8 +24,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from heapgrasp.bench.pages import write_summary
 from heapgrasp.loop.config import METHODS, ConfigError, ConfigFile, RunConfig
+from heapgrasp.results.pages import write_summary
 from heapgrasp.results.stats import format_interval, methods_differences, success_interval
 
 __all__ = [

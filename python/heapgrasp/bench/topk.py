@@ -333,8 +333,8 @@ def run_bench(config: TopKConfig, *, progress: bool = True) -> list[dict[str, An
 def run(args: argparse.Namespace) -> int:
     """``heapgrasp bench topk``; 0, 1 where a scene raised, 2 for bad settings."""
     from heapgrasp.bench.carve import machine_info
-    from heapgrasp.bench.pages import write_summary
     from heapgrasp.loop.config import parse_sets
+    from heapgrasp.results.pages import write_summary
 
     try:
         config = TopKConfig(

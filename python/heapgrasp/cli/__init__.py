@@ -18,8 +18,8 @@ returning the exit status. The commands::
     heapgrasp critic data|train|eval|convert the learned grasp critic
     heapgrasp seg data|train|eval|predict|coco
                                              the 4-class segmentation network (DeepLabv3+)
-    heapgrasp viewsphere bench|data|train    seed 001's active-vision benchmark, its
-                                             policies' dataset, its learned policies
+    heapgrasp viewsphere bench|data|train    the active-vision grasp benchmark (Natarajan et
+                                             al.), its policies' dataset and learned policies
     heapgrasp robot init|check|board|calibrate|run|replay
                                              the real robot (UR + RealSense + Robotiq);
                                              --sim rehearses it against the simulator,

@@ -2,7 +2,7 @@
 benchmarks' command lines; each runs a function of :mod:`heapgrasp.bench` (the module
 named in its parser's function) with the parsed options.
 
-Seed 001's viewsphere benchmark is ``heapgrasp viewsphere bench``
+The viewsphere benchmark (Natarajan et al.) is ``heapgrasp viewsphere bench``
 (:mod:`heapgrasp.cli.viewsphere`); ``bench viewsphere`` is its old spelling, kept for
 one release (:mod:`heapgrasp.cli.aliases`).
 """
@@ -49,7 +49,7 @@ def add_parser(commands: SubParsers) -> SubParsers:
         "run comparisons, and the Rust core's speed",
         description="Benchmarks: the closed loop on the paper's protocols (sim: Tables "
         "II/III; noise: Table V; clutter: Table IV), comparisons of finished runs, and the "
-        "speed of the Rust core and the networks. Seed 001's active-vision benchmark is "
+        "speed of the Rust core and the networks. Natarajan et al.'s active-vision benchmark is "
         "'heapgrasp viewsphere bench'.",
     )
     benches = p.add_subparsers(

@@ -1,12 +1,13 @@
-"""``heapgrasp viewsphere bench|data|train``: seed 001's active-vision benchmark
-(:mod:`heapgrasp.viewsphere`), its supervised policies' dataset and its learned policies.
+"""``heapgrasp viewsphere bench|data|train``: the active-vision grasp benchmark of
+Natarajan et al. (:mod:`heapgrasp.viewsphere`), its supervised policies' dataset and its
+learned policies.
 
 ``heapgrasp viewsphere bench``: the policies on the viewsphere, success per step
 (:mod:`heapgrasp.viewsphere.bench`; docs/viewsphere.md)::
 
     heapgrasp viewsphere bench --out runs/bench-viewsphere
 
-``heapgrasp viewsphere data``: seed 001's supervised viewsphere policies' dataset
+``heapgrasp viewsphere data``: Natarajan et al.'s supervised viewsphere policies' dataset
 (§4.3.1)::
 
     heapgrasp viewsphere data runs/vs-paths --scenes 2000
@@ -103,7 +104,8 @@ def add_bench(sub: SubParsers, name: str = "bench") -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         name,
-        help="seed 001's active-vision benchmark: policies on the viewsphere, success per step",
+        help="the active-vision grasp benchmark (Natarajan et al.): policies on the "
+        "viewsphere, success per step",
         description=bench.__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -202,7 +204,7 @@ def add_data(sub: SubParsers, name: str = "data") -> argparse.ArgumentParser:
     p = dataset_parser(
         sub,
         name,
-        "seed 001's supervised policies' data: random paths on the viewsphere, labelled "
+        "Natarajan et al.'s supervised policies' data: random paths on the viewsphere, labelled "
         "with the first direction of the shortest that found a grasp",
         section(__doc__, "viewsphere data"),
         scenes=2000,
@@ -238,11 +240,11 @@ def add_train(sub: SubParsers, name: str = "train") -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         name,
-        help="train seed 001's learned viewsphere policies (PCA + LR / LDA, DQN)",
+        help="train Natarajan et al.'s learned viewsphere policies (PCA + LR / LDA, DQN)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=textwrap.dedent(
             """\
-            Trains one of seed 001's learned viewsphere policies (section 4.3) and writes
+            Trains one of Natarajan et al.'s learned viewsphere policies (section 4.3) and writes
             OUT/viewsphere_<model>.onnx, OUT/metrics.json and OUT/metrics.png.
 
               heapgrasp viewsphere data runs/vs-train --scenes 2000
@@ -284,7 +286,8 @@ def add_parser(commands: SubParsers) -> argparse.ArgumentParser:
     """Adds ``viewsphere`` and its commands ``bench``, ``data`` and ``train``."""
     group = commands.add_parser(
         "viewsphere",
-        help="seed 001's active-vision benchmark: run it, its policies' dataset, train them",
+        help="the active-vision grasp benchmark (Natarajan et al.): run it, its policies' "
+        "dataset, train them",
         description=__doc__.split("\n\n")[0] if __doc__ else None,
     )
     sub = group.add_subparsers(dest="viewsphere_command", metavar="COMMAND", required=True)

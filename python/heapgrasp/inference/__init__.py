@@ -32,7 +32,7 @@ Inputs and outputs by kind (``B`` the batch, ``R`` = ``hparams["resolution"]``,
 * ``grasp-critic``: ``features`` ``(B, F)`` → ``logits`` ``(B,)``,
   ``F`` = ``hparams["n_features"]``;
 * ``viewsphere-policy``: ``state`` ``(B, F)`` → ``scores`` ``(B, 8)`` (one per direction
-  of seed 001's viewsphere), ``F`` = ``hparams["n_features"]``;
+  of Natarajan et al.'s viewsphere), ``F`` = ``hparams["n_features"]``;
 * ``segmentation-network``: ``image`` ``(B, 3, H, W)`` → ``logits`` ``(B, K, H, W)``,
   ``H``, ``W`` dynamic (fully convolutional), ``K`` = ``len(hparams["classes"])``
   (:class:`heapgrasp.perception.segnet.NetworkSegmenter` checks the rest).

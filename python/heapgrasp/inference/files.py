@@ -54,7 +54,7 @@ SHIPPED_FILES: Final[Mapping[str, str]] = {
     "grasp-critic": "critic.onnx",
 }
 
-#: The shipped viewsphere policies (seed 001's learned policies), by model.
+#: The shipped viewsphere policies (Natarajan et al.'s learned policies), by model.
 SHIPPED_VIEWSPHERE_POLICIES: Final[Mapping[str, str]] = {
     "pca-lr": "viewsphere_pca_lr.onnx",
     "pca-lda": "viewsphere_pca_lda.onnx",

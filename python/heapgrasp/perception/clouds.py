@@ -1,4 +1,4 @@
-"""Seed 001's point-cloud perception: fused depth, the table, the unexplored region.
+"""Natarajan et al.'s point-cloud perception: fused depth, the table, the unexplored region.
 
 The active-vision benchmark of seed ``001_95c7dd5c6a7c3646.txt`` (§3.2) sees the scene
 with a depth camera on its viewsphere (:mod:`heapgrasp.viewsphere.sphere`):
@@ -45,7 +45,7 @@ __all__ = [
 
 F64 = npt.NDArray[np.float64]
 
-#: Seed 001's sensor range (m).
+#: Natarajan et al.'s sensor range (m).
 MIN_RANGE = 0.10
 MAX_RANGE = 3.0
 #: A point is behind the measured surface when its depth exceeds the measurement by 1 %.

@@ -1,6 +1,6 @@
 """Analytic antipodal grasp planner on a voxel occupancy grid (no training).
 
-The force-closure grasp synthesis of seed 001 §3.3 — pairs of contacts whose surface
+The force-closure grasp synthesis of Natarajan et al. §3.3 — pairs of contacts whose surface
 normals oppose each other, a contact patch large enough on both fingers, a
 collision-free approach checked against the measured volume, a preference for grasps
 near the line of gravity — adapted to the high-confidence occupancy grid ``Ŝ≥λ`` of
@@ -29,7 +29,7 @@ next to occupied voxels) and orientation:
    from the pre-grasp pose (``pregrasp_distance`` back along z) to the grasp, must not
    overlap occupied voxels, nor come closer than ``table_clearance`` to the table (the
    grid's bottom face; everything below is occupied).
-3. *Antipodal contacts* (seed 001's contact-patch and normal constraints). On each
+3. *Antipodal contacts* (Natarajan et al.'s contact-patch and normal constraints). On each
    finger the patch is the pad cells whose object extreme lies within a voxel of the
    contact; it must span ``min_patch`` cells. The contact normal comes from a plane
    fitted to the extremes around the patch (tilt along the approach) and from the
@@ -38,7 +38,7 @@ next to occupied voxels) and orientation:
 4. *Quality* in [0, 1]: 1 for a clean grasp, times bounded factors for its weaknesses —
    normals near the edge of the cone, shallow finger engagement (below
    ``target_depth``), a small patch, a contact only one voxel high, the object off the
-   TCP, the closing line far from the centroid of the grasped blob (seed 001 prefers
+   TCP, the closing line far from the centroid of the grasped blob (Natarajan et al. prefers
    grasps near the line of gravity), a tilted approach, and a *ledge*: the object
    widening just below the fingertips (``ledge_factor``). Carving from views above the
    scene leaves a roof on every object, narrower than the object and as high as half its
@@ -156,7 +156,7 @@ class _Scene:
 
 
 class AntipodalPlanner:
-    """Antipodal grasp planner on an occupancy grid (seed 001 §3.3 on voxels).
+    """Antipodal grasp planner on an occupancy grid (Natarajan et al. §3.3 on voxels).
 
     Satisfies :class:`~heapgrasp.planning.volumes.GraspPlanner`: :meth:`predict` maps
     the high-confidence occupancy grid (a voxel is occupied when > 0) to per-voxel grasp
@@ -176,7 +176,7 @@ class AntipodalPlanner:
         Closing directions per approach (over 180°).
     friction_angle
         Half-angle of the friction cone (rad) about the closing axis in which both
-        contact normals must lie. Seed 001 asks for ≥ 150° between the normals (15°
+        contact normals must lie. Natarajan et al. ask for ≥ 150° between the normals (15°
         each); voxel normals are only good to ~10°, and the simulated friction
         coefficient of 1 allows 45°.
     table_z

@@ -1,4 +1,4 @@
-"""Seed 001's grasp synthesis on a fused object point cloud (§3.3), NumPy reference.
+"""Natarajan et al.'s grasp synthesis on a fused object point cloud (§3.3), NumPy reference.
 
 The active-vision benchmark of seed ``001_95c7dd5c6a7c3646.txt`` looks for a two-finger
 grasp on the object's points (:mod:`heapgrasp.perception.clouds`):

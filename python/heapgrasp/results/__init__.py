@@ -5,5 +5,6 @@
   writes;
 * :mod:`~heapgrasp.results.summary` — a run's summary (§VI-D metrics per scene group,
   the leftover analysis) and its one-line method label;
-* :mod:`~heapgrasp.results.stats` — Wilson intervals, paired scene-bootstrap differences.
+* :mod:`~heapgrasp.results.stats` — Wilson intervals, paired scene-bootstrap differences;
+* :mod:`~heapgrasp.results.pages` — a benchmark folder's ``summary.md`` (its table and figures).
 """

@@ -1,18 +1,19 @@
-"""``heapgrasp viewsphere bench``: seed 001's active-vision benchmark (§4.1, §5.1).
+"""``heapgrasp viewsphere bench``: the active-vision grasp benchmark of Natarajan et al.
+(§4.1, §5.1).
 
 Each object stands at the table's centre in ``--poses`` poses (the protocol's yaws,
 :func:`~heapgrasp.viewsphere.protocol.protocol_yaws`); from each pose every policy
 runs one episode from the start view (azimuth π, polar π/7): a move of 20° at a time
-on the viewsphere until the fused views yield a grasp (seed 001 §3.3) or 6 moves were
+on the viewsphere until the fused views yield a grasp (Natarajan et al. §3.3) or 6 moves were
 made. A pose without a grasp after them counts 6 steps. The policies:
 
 * ``random``: a uniformly random direction each move (seeded per pose);
 * ``brick``: always north-east;
-* ``heuristic-2d``, ``heuristic-3d``: seed 001's Algorithms 1 and 2
+* ``heuristic-2d``, ``heuristic-3d``: Natarajan et al.'s Algorithms 1 and 2
   (:mod:`heapgrasp.viewsphere.heuristics`);
 * ``information-gain``: the comparison of §4.2.3, which flies between 34 fixed
   viewpoints; its steps are viewpoints, and ``travelled_steps`` its path in 20° steps;
-* ``pca-lr``, ``pca-lda``, ``dqn``: seed 001's learned policies (§4.3), trained on the
+* ``pca-lr``, ``pca-lda``, ``dqn``: Natarajan et al.'s learned policies (§4.3), trained on the
   training shapes only (:mod:`heapgrasp.viewsphere.learned`), from the shipped
   files or ``--weights MODEL=FILE``;
 * ``heapgrasp-net``, ``heapgrasp-oracle``: HEAPGrasp's eq. 14 on a grid carved from the
@@ -63,8 +64,8 @@ from typing import Any
 
 import numpy as np
 
-from heapgrasp.bench.pages import write_summary
 from heapgrasp.loop.config import parse_sets
+from heapgrasp.results.pages import write_summary
 from heapgrasp.results.records import write_json
 from heapgrasp.viewsphere.episode import LEARNED, PoseTask, run_pose
 from heapgrasp.viewsphere.grasps import ViewsphereConfig

@@ -1,4 +1,4 @@
-"""The supervised viewsphere policies' dataset (seed 001 §4.3.1, after Calli et al. 2018a):
+"""The supervised viewsphere policies' dataset (Natarajan et al. §4.3.1, after Calli et al. 2018a):
 random exploration from random starts, labelled with the first direction of the
 shortest path that found a grasp.
 

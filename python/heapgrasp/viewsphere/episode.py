@@ -2,7 +2,7 @@
 
 :func:`run_pose` places the object at one of the protocol's yaws in a
 :class:`~heapgrasp.viewsphere.world.ViewsphereWorld`, runs each policy's episode from
-the start view (seed 001 §4.1: 20° moves until the fused views yield a grasp, or 6
+the start view (Natarajan et al. §4.1: 20° moves until the fused views yield a grasp, or 6
 moves) and, unless told not to, executes the grasp it found with the free-flying hand
 (:mod:`heapgrasp.viewsphere.execute`). :mod:`heapgrasp.viewsphere.bench` runs it over
 objects and poses; :mod:`heapgrasp.viewsphere.report` summarises what it returns.

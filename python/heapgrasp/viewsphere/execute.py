@@ -1,4 +1,4 @@
-"""Executing a grasp seed 001's synthesis found, with the simulated hand.
+"""Executing a grasp Natarajan et al.'s synthesis found, with the simulated hand.
 
 The paper counts a grasp *found* as success (§5.1). Here the grasp is also executed:
 the object (its resting meshes turned by the pose's yaw) is placed on PyBullet's table,

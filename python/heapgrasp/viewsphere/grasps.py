@@ -1,4 +1,4 @@
-"""Seed 001's perception and grasp synthesis over the views a camera on the viewsphere
+"""Natarajan et al.'s perception and grasp synthesis over the views a camera on the viewsphere
 has taken: what a simulated or a real depth camera feeds the benchmark's policies.
 
 The benchmark of seed ``001_95c7dd5c6a7c3646.txt`` (§3.2–3.3) asks after every move
@@ -57,19 +57,19 @@ from heapgrasp.viewsphere.heuristics import ViewsphereScorer
 from heapgrasp.viewsphere.policies import PoseKey, pose_key
 from heapgrasp.viewsphere.sphere import DiscreteViewsphere, SpherePose
 
-__all__ = ["SEED001_CAMERA", "FoundGrasp", "ViewsphereConfig", "ViewsphereGrasps"]
+__all__ = ["VIEWSPHERE_CAMERA", "FoundGrasp", "ViewsphereConfig", "ViewsphereGrasps"]
 
 F64 = npt.NDArray[np.float64]
 Depth = npt.NDArray[np.float32]
 
-#: Seed 001's depth camera: 640 × 480, fx = fy = 554.2547 (a horizontal field of view of
+#: Natarajan et al.'s depth camera: 640 × 480, fx = fy = 554.2547 (a horizontal field of view of
 #: 1.047 rad), principal point (320.5, 240.5).
-SEED001_CAMERA = CameraSpec(width=640, height=480, fx=554.2547, fy=554.2547, cx=320.5, cy=240.5)
+VIEWSPHERE_CAMERA = CameraSpec(width=640, height=480, fx=554.2547, fy=554.2547, cx=320.5, cy=240.5)
 
 
 @dataclass(frozen=True)
 class ViewsphereConfig:
-    """Every setting of seed 001's benchmark (lengths in metres, angles in degrees)."""
+    """Every setting of Natarajan et al.'s benchmark (lengths in metres, angles in degrees)."""
 
     radius: float = 0.40
     """The viewsphere's radius."""
@@ -235,7 +235,7 @@ class ViewsphereGrasps:
         render: Callable[[SpherePose], npt.ArrayLike],
         *,
         sphere: DiscreteViewsphere,
-        camera: CameraSpec = SEED001_CAMERA,
+        camera: CameraSpec = VIEWSPHERE_CAMERA,
         config: ViewsphereConfig | None = None,
         gripper: GripperGeometry = PANDA_HAND,
     ) -> None:

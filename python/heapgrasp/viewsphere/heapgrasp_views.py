@@ -1,4 +1,4 @@
-"""HEAPGrasp's view scoring (eq. 14) as a policy on seed 001's viewsphere: neither paper
+"""HEAPGrasp's view scoring (eq. 14) as a policy on Natarajan et al.'s viewsphere: neither paper
 has it.
 
 The views visited so far are carved into an occupancy grid from their silhouettes

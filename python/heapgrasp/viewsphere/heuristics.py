@@ -1,4 +1,4 @@
-"""Seed 001's heuristic policies: the 2D and 3D heuristics and the information gain
+"""Natarajan et al.'s heuristic policies: the 2D and 3D heuristics and the information gain
 comparison (§4.2, Algorithms 1 and 2).
 
 Each scores candidate next views by how much of the unexplored region they would show,
@@ -147,7 +147,7 @@ def _best(scored: Sequence[tuple[int, float]]) -> int:
 
 @dataclass
 class Heuristic2D:
-    """Seed 001's Algorithm 1 (module doc)."""
+    """Natarajan et al.'s Algorithm 1 (module doc)."""
 
     scorer: ViewsphereScorer
     closing_px: int = 19
@@ -194,7 +194,7 @@ class Heuristic2D:
 
 @dataclass
 class Heuristic3D:
-    """Seed 001's Algorithm 2 (module doc): ``half_length`` is the gripper's opening."""
+    """Natarajan et al.'s Algorithm 2 (module doc): ``half_length`` is the gripper's opening."""
 
     scorer: ViewsphereScorer
     half_length: float = 0.08
@@ -247,7 +247,7 @@ class Heuristic3D:
 
 
 def information_gain_viewpoints() -> tuple[SpherePose, ...]:
-    """The 34 viewpoints of seed 001's information gain comparison (§4.2.3): home at
+    """The 34 viewpoints of Natarajan et al.'s information gain comparison (§4.2.3): home at
     polar π/6.5 (azimuth π); 9 at polar 22.5° (azimuth 0–320° every 40°); 12 each at
     polar 45° and 67.5° (azimuth 60–300° every 20°, leaving out 161–199°)."""
     views = [SpherePose(math.pi, math.pi / 6.5)]

@@ -1,4 +1,4 @@
-"""Seed 001's learned viewsphere policies (§4.3): the state vector, the policy files and
+"""Natarajan et al.'s learned viewsphere policies (§4.3): the state vector, the policy files and
 the policy that runs them.
 
 **The state** (:func:`state_features`, ``2n² + 2`` values, n = 5): height-accumulated

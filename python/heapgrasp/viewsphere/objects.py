@@ -1,4 +1,4 @@
-"""Stand-ins for seed 001's objects: the 12 YCB test objects and the training shapes.
+"""Stand-ins for Natarajan et al.'s objects: the 12 YCB test objects and the training shapes.
 
 The YCB meshes of seed ``001_95c7dd5c6a7c3646.txt`` cannot be downloaded here, so each
 test object is a procedural stand-in of its published size, built from closed meshes
@@ -170,7 +170,7 @@ TEST_OBJECTS: dict[str, Callable[[], list[trimesh.Trimesh]]] = {
     "072-a_toy_airplane": _airplane,
 }
 
-#: The training objects of seed 001 §4.3.
+#: The training objects of Natarajan et al. §4.3.
 TRAIN_OBJECTS: dict[str, Callable[[], list[trimesh.Trimesh]]] = {
     "prism_6x6x6": lambda: [_box(0.06, 0.06, 0.06)],
     "prism_10x8x4": lambda: [_box(0.10, 0.08, 0.04)],

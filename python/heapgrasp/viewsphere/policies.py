@@ -1,4 +1,4 @@
-"""Seed 001's baseline policies on the discrete viewsphere, and its episodes.
+"""Natarajan et al.'s baseline policies on the discrete viewsphere, and its episodes.
 
 The benchmark of seed ``001_95c7dd5c6a7c3646.txt`` (§4.1) starts the camera at
 :data:`~heapgrasp.viewsphere.sphere.START`, looks for a grasp on what it has seen, and
@@ -128,7 +128,7 @@ class RandomPolicy:
 
 @dataclass
 class BrickPolicy:
-    """Always north-east (seed 001's "brick on the gas pedal")."""
+    """Always north-east (Natarajan et al.'s "brick on the gas pedal")."""
 
     name: str = "brick"
 

@@ -1,4 +1,4 @@
-"""Seed 001's test protocol: the objects' resting poses and the 100 yaws of each.
+"""Natarajan et al.'s test protocol: the objects' resting poses and the 100 yaws of each.
 
 The public code of seed ``001_95c7dd5c6a7c3646.txt`` places each test object at the
 table's centre in a fixed resting pose (a height, a roll and a pitch, for its YCB mesh)

@@ -1,5 +1,5 @@
 """The viewsphere benchmark's results: per-policy summaries, the object classes, Fig. 10
-and 11, Table 1 and the markdown table (seed 001 §5.1).
+and 11, Table 1 and the markdown table (Natarajan et al. §5.1).
 
 Everything here reads the per-pose records :func:`heapgrasp.viewsphere.episode.run_pose`
 returns; nothing runs a policy.
@@ -18,7 +18,7 @@ from heapgrasp.viewsphere.episode import VIEWPOINT_POLICIES
 __all__ = ["CLASS_THRESHOLDS", "classify", "figures", "markdown_table", "summarize"]
 
 #: Random's share of BFS's success at step 2: at most the first is hard, at most the
-#: second medium, else easy (seed 001 §5.1).
+#: second medium, else easy (Natarajan et al. §5.1).
 CLASS_THRESHOLDS = (0.40, 0.80)
 
 
@@ -56,7 +56,7 @@ def _policy_summary(records: Sequence[Mapping[str, Any]], name: str, steps: int)
 
 
 def classify(random_at_2: float | None, bfs_at_2: float | None) -> str | None:
-    """An object's class from random's and BFS's success at step 2 (seed 001 §5.1)."""
+    """An object's class from random's and BFS's success at step 2 (Natarajan et al. §5.1)."""
     if random_at_2 is None or bfs_at_2 is None:
         return None
     if bfs_at_2 <= 0.0:
@@ -142,7 +142,7 @@ def bfs_ratios(
     return out
 
 
-#: Seed 001's Table 1 average reductions of the 3D heuristic over information gain (%):
+#: Natarajan et al.'s Table 1 average reductions of the 3D heuristic over information gain (%):
 #: effective steps, time.
 PAPER_TABLE1_REDUCTIONS = (41.0, 73.0)
 
@@ -196,7 +196,7 @@ def markdown_table(results: Mapping[str, Any]) -> str:
     settings = results["settings"]
     steps = int(settings["config"]["max_steps"])
     lines = [
-        "# Seed 001's viewsphere benchmark",
+        "# The viewsphere benchmark (Natarajan et al.)",
         "",
         f"Objects: {len(results['classes'])}; poses per object: {settings['poses']}; "
         f"sensor: {settings['sensor']}; random seed: {settings['seed']}; "
@@ -363,7 +363,7 @@ def figures(results: Mapping[str, Any], out: Path) -> None:
                         ax.text(x, 0.02, "0", ha="center", va="bottom", fontsize=6)
             ax.set_xticks(range(len(classes)), classes)
             ax.set_xlim(-0.5, len(classes) - 0.5)
-            ax.set_xlabel("object class (seed 001 §5.1)")
+            ax.set_xlabel("object class (Natarajan et al. §5.1)")
             ax.set_title(f"step {step}", fontsize=9)
             ax.axhline(1.0, color="k", lw=0.8)
             ax.grid(axis="y", alpha=0.3)
@@ -382,7 +382,7 @@ def figures(results: Mapping[str, Any], out: Path) -> None:
         ax.axhline(medium, color="tab:orange", ls="--", lw=1, label=f"medium ≤ {medium:g} < easy")
         ax.set_ylabel("random / BFS success\nat step 2")
         ax.set_xlabel("object")
-        ax.set_title("object difficulty (seed 001 §5.1)", fontsize=9)
+        ax.set_title("object difficulty (Natarajan et al. §5.1)", fontsize=9)
         ax.legend(fontsize=7)
         ax.tick_params(axis="x", rotation=60, labelsize=7)
         fig.tight_layout()

@@ -1,4 +1,4 @@
-"""Seed 001's viewsphere: a camera on a sphere around the object, moved in discrete steps.
+"""Natarajan et al.'s viewsphere: a camera on a sphere around the object, moved in discrete steps.
 
 The active-vision benchmark of seed ``001_95c7dd5c6a7c3646.txt`` (§3.1, Fig. 3) keeps the
 camera on a sphere of radius ``v_r = 0.40 m`` centred on the object, always looking at
@@ -49,7 +49,7 @@ class SpherePose(NamedTuple):
     """From straight above (0), in ``[0, π]``."""
 
 
-#: Seed 001's first view: azimuth π, polar π/7.
+#: Natarajan et al.'s first view: azimuth π, polar π/7.
 START = SpherePose(math.pi, math.pi / 7)
 
 

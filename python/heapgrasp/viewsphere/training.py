@@ -1,4 +1,4 @@
-"""Training seed 001's learned viewsphere policies (§4.3): PCA + logistic regression and
+"""Training Natarajan et al.'s learned viewsphere policies (§4.3): PCA + logistic regression and
 PCA + LDA on the paths dataset (:mod:`heapgrasp.viewsphere.data`), and the deep
 Q-network by playing episodes in the simulator. Each writes a policy file
 (:func:`~heapgrasp.viewsphere.learned.policy_onnx`), ``metrics.json`` and

@@ -1,11 +1,11 @@
-"""Seed 001's world on our renderer: one object on a table, a depth camera on the
+"""Natarajan et al.'s world on our renderer: one object on a table, a depth camera on the
 viewsphere.
 
 The object's meshes (world frame, resting on the table top at ``z = 0``) and a table
 slab are rendered by the Rust core's rasteriser (:class:`heapgrasp.MeshScene`; ideal depth as
 in the paper, or through our depth sensor's model for a transparent, specular or opaque
-object) with seed 001's camera
-(:data:`~heapgrasp.viewsphere.grasps.SEED001_CAMERA`) from the poses of a
+object) with Natarajan et al.'s camera
+(:data:`~heapgrasp.viewsphere.grasps.VIEWSPHERE_CAMERA`) from the poses of a
 :class:`~heapgrasp.viewsphere.sphere.DiscreteViewsphere` centred on the table's centre.
 Whether a set of views yields a grasp is :class:`~heapgrasp.viewsphere.grasps.ViewsphereGrasps`'
 answer on these depth images (the same code a real camera's images would go through);
@@ -23,7 +23,7 @@ from heapgrasp import MeshScene
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.sim.optics import Category, DepthModel
 from heapgrasp.viewsphere.grasps import (
-    SEED001_CAMERA,
+    VIEWSPHERE_CAMERA,
     FoundGrasp,
     ViewsphereConfig,
     ViewsphereGrasps,
@@ -31,7 +31,7 @@ from heapgrasp.viewsphere.grasps import (
 from heapgrasp.viewsphere.policies import PoseKey, pose_key
 from heapgrasp.viewsphere.sphere import SpherePose
 
-__all__ = ["SEED001_CAMERA", "FoundGrasp", "ViewsphereWorld"]
+__all__ = ["VIEWSPHERE_CAMERA", "FoundGrasp", "ViewsphereWorld"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -60,7 +60,7 @@ class ViewsphereWorld:
         meshes: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
         *,
         config: ViewsphereConfig | None = None,
-        camera: CameraSpec = SEED001_CAMERA,
+        camera: CameraSpec = VIEWSPHERE_CAMERA,
         sensor: Category | None = None,
         depth_model: DepthModel | None = None,
         seed: int = 0,

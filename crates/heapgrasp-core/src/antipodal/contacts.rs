@@ -1,6 +1,6 @@
 //! Contact geometry of one candidate grasp on the nearest-voxel lattice (the
 //! conservative one blurs flat tops and faces by half a voxel): engagement, ledge,
-//! contact patches and normals (seed 001 §3.3's patch and friction-cone constraints),
+//! contact patches and normals (Natarajan et al. §3.3's patch and friction-cone constraints),
 //! and the quality factors.
 
 use super::lattice::{band_any, clampi, cumsum_j, integral_xz, next_true, prev_true, to_grid, Vol};
@@ -242,7 +242,7 @@ pub(super) fn quality(
     };
     q *= if ledge { p.ledge_factor } else { 1.0 };
     q *= 1.0 - 0.1 * (o.tilt / (std::f64::consts::PI / 4.0)).min(1.0);
-    // Closing line near the centroid of the grasped blob (seed 001: line of gravity).
+    // Closing line near the centroid of the grasped blob (Natarajan et al.: line of gravity).
     let mid = [ic, (y_hi + y_lo).div_euclid(2), kc];
     let um: [f64; 3] = std::array::from_fn(|d| lat.lo[d] + v * mid[d] as f64);
     let vox = to_grid(&um, rot).map(|x| clampi(floor_fast(x / v) as i64, 0, r - 1) as usize);

@@ -1,5 +1,5 @@
 //! Antipodal grasps on a voxel occupancy grid: the per-orientation search of
-//! `heapgrasp.planning.antipodal.AntipodalPlanner` (seed 001 §3.3 adapted to HEAPGrasp's
+//! `heapgrasp.planning.antipodal.AntipodalPlanner` (Natarajan et al. §3.3 adapted to HEAPGrasp's
 //! high-confidence grid `Ŝ≥λ`, written as the per-voxel grasp volumes of eq. 11).
 //!
 //! The Python planner prepares the scene (connected blobs, their centroids, the

@@ -1,4 +1,4 @@
-//! Seed 001's point clouds (§3.2): voxel down-sampling of the fused views, and which
+//! Natarajan et al.'s point clouds (§3.2): voxel down-sampling of the fused views, and which
 //! points of the unexplored region a depth view shows to be empty.
 //!
 //! A point is *seen empty* by a view when it lies in front of the camera, projects into

@@ -1,4 +1,4 @@
-//! Points inside a parallel-jaw hand: the collision check of seed 001's grasp synthesis
+//! Points inside a parallel-jaw hand: the collision check of Natarajan et al.'s grasp synthesis
 //! (§3.3), where the gripper at a candidate pose must hold none of the object's points
 //! nor of the unexplored region's (what no view has shown to be empty).
 //!

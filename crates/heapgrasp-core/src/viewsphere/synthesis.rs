@@ -1,4 +1,4 @@
-//! Seed 001's grasp synthesis on a fused object point cloud (§3.3): the hot loops of
+//! Natarajan et al.'s grasp synthesis on a fused object point cloud (§3.3): the hot loops of
 //! `heapgrasp.planning.synthesis`.
 //!
 //! 1. [`point_normals`]: each point's normal and curvature from its `k` nearest points

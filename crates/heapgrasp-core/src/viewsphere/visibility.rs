@@ -1,4 +1,4 @@
-//! Seed 001's heuristic view scores (§4.2.2–4.2.3): which unexplored points could hold
+//! Natarajan et al.'s heuristic view scores (§4.2.2–4.2.3): which unexplored points could hold
 //! a grasp, and which points a next view would see past the object's surface.
 //!
 //! # The grasp region (the 3D heuristic's "useful" unexplored points)
