@@ -12,13 +12,13 @@ from heapgrasp import MeshScene, OccupancyGrid
 from heapgrasp.geometry.camera import CameraSpec
 from heapgrasp.geometry.motion import (
     ViewSphere,
-    _arc_eyes,
-    _look_at_many,
     arc_length_samples,
     interpolate,
     interpolate_sampled,
     look_at,
 )
+from heapgrasp.geometry.motion.interpolation import _arc_eyes
+from heapgrasp.geometry.motion.sphere import look_at_many
 from heapgrasp.planning.views import (
     OracleViewScorer,
     ViewContext,
@@ -124,7 +124,7 @@ def _sampled_one_by_one(
     for goal in goals:
         eyes = _arc_eyes(start[:3, 3], goal[:3, 3], sphere.center_array, step)
         idx = arc_length_samples(eyes, frames)
-        out.append(_look_at_many(np.ascontiguousarray(eyes[idx]), sphere.target_array, up))
+        out.append(look_at_many(np.ascontiguousarray(eyes[idx]), sphere.target_array, up))
     return out
 
 
