@@ -3,7 +3,7 @@ largest difference between their outputs (docs/benchmarks.md, "View network:
 onnxruntime vs PyTorch").
 
 Randomly initialised networks of the default size (their speed does not depend on the
-weights), exported with ``heapgrasp.nets.export_onnx``; random 40³ occupancy grids
+weights), exported with ``heapgrasp.training.export_onnx``; random 40³ occupancy grids
 (15 % occupied). Each call is one forward pass on a batch of 1, timed alone after
 ``--warmup`` calls; the median of ``--calls`` is reported. The runtimes take turns in
 blocks of ``--block`` calls (each block after two untimed calls and a 50 ms pause, so
@@ -33,9 +33,9 @@ import numpy as np
 import onnxruntime
 import torch
 from heapgrasp.inference import OnnxNetwork
-from heapgrasp.nets import GraspNet, ViewNet, export_onnx
-from heapgrasp.nets.export import describe_machine
 from heapgrasp.planning.view_network import NetworkViewScorer
+from heapgrasp.training import GraspNet, ViewNet, export_onnx
+from heapgrasp.training.export import describe_machine
 
 
 def median_ms(

@@ -24,7 +24,7 @@ import sys
 
 import numpy as np
 from heapgrasp.inference import OnnxNetwork
-from heapgrasp.nets.grasp_data import GraspDataError, load_grasp_dataset
+from heapgrasp.training.grasp_data import GraspDataError, load_grasp_dataset
 from scipy import ndimage
 from scipy.spatial.transform import Rotation
 

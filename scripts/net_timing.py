@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 import onnxruntime
 import torch
-from heapgrasp.nets import GraspNet, ViewNet, export_onnx
 from heapgrasp.planning.grasp_network import NetworkGraspPlanner
 from heapgrasp.planning.view_network import NetworkViewScorer
 from heapgrasp.planning.volumes import GridFrame
+from heapgrasp.training import GraspNet, ViewNet, export_onnx
 
 FRAME = GridFrame((-0.15, -0.15, 0.0), 0.30, 40)
 

@@ -72,7 +72,7 @@ def test_polygons_and_rle_become_class_ids_smaller_objects_on_top(tmp_path: Path
     assert summary["pixels"]["opaque"] == 60 - 8
     assert (tmp_path / "out" / "images" / "a.png").is_file()
     # the folder seg train reads
-    from heapgrasp.nets.segmentation import SegFolder
+    from heapgrasp.training.segmentation import SegFolder
 
     assert len(SegFolder.open(tmp_path / "out").stems) == 1
 

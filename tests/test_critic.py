@@ -13,27 +13,30 @@ from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.protocol import StopReason, run_clutter_removal
 from heapgrasp.loop.stages import make_critic
 from heapgrasp.planning.critic import (
+    ARRAYS,
     CROP_SHAPE,
     N_SCALARS,
     GraspCritic,
     candidate_features,
     crop_in_grasp_frame,
-    fit_logistic,
     flip_pose,
     view_features,
-)
-from heapgrasp.planning.critic_train import (
-    Design,
-    auc,
-    cross_validate,
-    design_matrix,
-    hull_kind,
-    phase_picks,
 )
 from heapgrasp.planning.volumes import GraspCandidate
 from heapgrasp.sim.build import sim_pipeline
 from heapgrasp.sim.objects import ObjectLibrary
 from heapgrasp.sim.world import SimWorld
+from heapgrasp.training.train_critic import (
+    Design,
+    auc,
+    cross_validate,
+    design_matrix,
+    fit_critic,
+    fit_logistic,
+    hull_kind,
+    phase_picks,
+    save_critic,
+)
 
 FRAME = GridFrame((0.0, 0.0, 0.0), 0.30, 40)
 N_CROP = int(np.prod(CROP_SHAPE))
@@ -133,7 +136,7 @@ def synthetic_critic(rng: np.random.Generator) -> tuple[GraspCritic, np.ndarray,
     x = rng.random((200, n)).round()
     x[:, 2 * N_CROP] = rng.random(200)
     y = (x[:, 2 * N_CROP] > 0.5).astype(float)
-    return GraspCritic.fit(x, y, components=4, l2=1.0), x, y
+    return fit_critic(x, y, components=4, l2=1.0), x, y
 
 
 def test_critic_learns_and_round_trips_through_its_file(tmp_path: Path) -> None:
@@ -142,7 +145,9 @@ def test_critic_learns_and_round_trips_through_its_file(tmp_path: Path) -> None:
     p = critic.probability(x)
     assert auc(p, y) > 0.95
     path = tmp_path / "critic.onnx"
-    critic.save(path, command="heapgrasp critic train d --out critic.onnx", metadata={"a": 1})
+    save_critic(
+        critic, path, command="heapgrasp critic train d --out critic.onnx", metadata={"a": 1}
+    )
     back = GraspCritic.load(path)
     np.testing.assert_array_equal(back.probability(x), p)  # the same graph, the same runtime
     assert back.metadata["command"].startswith("heapgrasp critic train")
@@ -164,7 +169,7 @@ def test_critic_file_errors_name_the_file(tmp_path: Path) -> None:
 
 
 def test_critic_arrays_must_fit_together() -> None:
-    from heapgrasp.planning.critic_net import critic_onnx
+    from heapgrasp.training.critic_net import critic_onnx
 
     n = 2 * N_CROP + N_SCALARS
     mean, scale = np.zeros(n), np.ones(n)
@@ -189,11 +194,11 @@ def test_critic_arrays_must_fit_together() -> None:
 
 def test_cnn_critic_runs_in_onnxruntime_as_in_torch_and_round_trips(tmp_path: Path) -> None:
     torch = pytest.importorskip("torch")
-    from heapgrasp.planning.critic_net import ARRAYS, ConvCritic, _torch_module, fit_conv
+    from heapgrasp.training.critic_net import ConvCritic, _torch_module, fit_conv
 
     rng = np.random.default_rng(3)
     _, x, y = synthetic_critic(rng)
-    critic = GraspCritic.fit(x, y, model="cnn", epochs=3, seed=1)
+    critic = fit_critic(x, y, model="cnn", epochs=3, seed=1)
     assert critic.model == "cnn" and critic.network.hparams["hidden"] == 64
     mean, scale = x.mean(axis=0), x.std(axis=0)
     scale[scale < 1e-6] = 1.0
@@ -218,14 +223,14 @@ def test_cnn_critic_runs_in_onnxruntime_as_in_torch_and_round_trips(tmp_path: Pa
     assert np.all((p > 0) & (p < 1))
     # Its file gives the same probabilities back.
     path = tmp_path / "cnn.onnx"
-    critic.save(path, command="heapgrasp critic train d --model cnn --out cnn.onnx")
+    save_critic(critic, path, command="heapgrasp critic train d --model cnn --out cnn.onnx")
     back = GraspCritic.load(path)
     assert back.model == "cnn" and back.metadata["command"].endswith("cnn.onnx")
     np.testing.assert_array_equal(back.probability(x), p)
     with pytest.raises(ValueError, match="fc2_w"):
         ConvCritic(*(getattr(weights, n) if n != "fc2_w" else np.zeros((2, 64)) for n in ARRAYS))
     with pytest.raises(ValueError, match="model"):
-        GraspCritic.fit(x, y, model="forest")
+        fit_critic(x, y, model="forest")
 
 
 def test_phase_picks_on_hand_made_phases() -> None:

@@ -48,7 +48,7 @@ def test_shards_are_grasp_data_that_training_reads(
 ) -> None:
     """The grasp data's arrays (``heapgrasp grasps train`` loads them), every sample a
     loop phase, and the top candidates indexed, ranked best first, scores falling."""
-    from heapgrasp.nets.grasp_data import load_grasp_dataset
+    from heapgrasp.training.grasp_data import load_grasp_dataset
 
     torch = pytest.importorskip("torch")
     del torch

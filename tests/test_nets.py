@@ -1,5 +1,5 @@
 """The grasp network (eq. 11) and view network (eq. 13), their weights files, and the
-planners built on them, which run the exported ONNX files (heapgrasp.nets,
+planners built on them, which run the exported ONNX files (heapgrasp.training,
 planning.grasp_network, planning.view_network)."""
 
 from __future__ import annotations
@@ -19,7 +19,11 @@ torch = pytest.importorskip("torch")
 import heapgrasp as hg  # noqa: E402
 from heapgrasp.geometry.grid import GridFrame  # noqa: E402
 from heapgrasp.inference.errors import WeightsError  # noqa: E402
-from heapgrasp.nets import (  # noqa: E402
+from heapgrasp.planning.grasp_network import NetworkGraspPlanner  # noqa: E402
+from heapgrasp.planning.view_network import NetworkViewScorer  # noqa: E402
+from heapgrasp.planning.views import ViewContext, ViewScorer  # noqa: E402
+from heapgrasp.planning.volumes import GraspPlanner, GraspVolumes, select_candidates  # noqa: E402
+from heapgrasp.training import (  # noqa: E402
     Encoder3d,
     GraspNet,
     ViewNet,
@@ -31,11 +35,7 @@ from heapgrasp.nets import (  # noqa: E402
     resolve_device,
     save_weights,
 )
-from heapgrasp.nets.models import _unit_quaternions  # noqa: E402
-from heapgrasp.planning.grasp_network import NetworkGraspPlanner  # noqa: E402
-from heapgrasp.planning.view_network import NetworkViewScorer  # noqa: E402
-from heapgrasp.planning.views import ViewContext, ViewScorer  # noqa: E402
-from heapgrasp.planning.volumes import GraspPlanner, GraspVolumes, select_candidates  # noqa: E402
+from heapgrasp.training.models import _unit_quaternions  # noqa: E402
 
 SMALL = 16  # small grids keep the suite fast; the paper's 40³ is tested once per net
 
@@ -329,7 +329,7 @@ def test_default_weights_location():
 @pytest.fixture(scope="module")
 def onnx_files(tmp_path_factory):
     """Exported networks: grasp and view at R = 16 and at the paper's 40."""
-    from heapgrasp.nets import export_onnx
+    from heapgrasp.training import export_onnx
 
     folder = tmp_path_factory.mktemp("onnx")
     nets = {
@@ -374,8 +374,8 @@ def test_grasp_planner_paper_resolution(onnx_files):
 
 
 def test_a_tsdf_networks_quality_is_kept_where_vgn_keeps_it(onnx_files, tmp_path):
-    from heapgrasp.nets import export_onnx
     from heapgrasp.planning.grasp_network import tsdf_valid
+    from heapgrasp.training import export_onnx
 
     # A table-like surface: unobserved below, the band behind it, the band in front,
     # free space above (heapgrasp's TSDF: 1 free, 0 unobserved).
@@ -402,7 +402,7 @@ def test_a_palm_origin_network_grasps_ahead_of_its_voxel(onnx_files, tmp_path):
     (within 1.1 finger depths and a voxel), never deep inside it."""
     from heapgrasp.geometry.gripper import PANDA_HAND
     from heapgrasp.inference.errors import WeightsError
-    from heapgrasp.nets import export_onnx
+    from heapgrasp.training import export_onnx
 
     net, _ = onnx_files["grasp40"]
     hp = {"input_kind": "occupancy", "grasp_origin": "palm"}
@@ -440,7 +440,7 @@ def test_a_network_for_the_2f140_plans_for_its_hand(onnx_files, tmp_path):
     from heapgrasp.inference.errors import WeightsError
     from heapgrasp.loop.config import ConfigError, RunConfig
     from heapgrasp.loop.stages import make_grasp_planner
-    from heapgrasp.nets import export_onnx
+    from heapgrasp.training import export_onnx
 
     net, _ = onnx_files["grasp40"]
     hp = {"input_kind": "occupancy", "grasp_origin": "palm", "gripper": "robotiq-2f140"}
@@ -571,7 +571,7 @@ def test_resolve_device_names_what_pytorch_sees():
 def test_the_grasp_network_reads_the_grid_it_was_trained_on(onnx_files, tmp_path):
     from heapgrasp.loop.config import ConfigError, RunConfig
     from heapgrasp.loop.stages import make_grasp_planner
-    from heapgrasp.nets import export_onnx
+    from heapgrasp.training import export_onnx
 
     net, occupancy = onnx_files["grasp16"]
     tsdf = export_onnx(net, tmp_path / "tsdf.onnx", provenance={}, hparams={"input_kind": "tsdf"})
@@ -662,8 +662,9 @@ def test_no_torch_import_at_run_time_and_clear_error():
                 assert "w.onnx" in str(exc), exc
             else:
                 raise AssertionError("no FileNotFoundError")
+        import heapgrasp.training  # by itself no PyTorch (the linear critic needs none)
         try:
-            import heapgrasp.nets
+            from heapgrasp.training import GraspNet  # noqa: F401
         except ImportError as exc:
             assert "install heapgrasp[train]" in str(exc), exc
         else:

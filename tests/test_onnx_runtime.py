@@ -33,6 +33,7 @@ from heapgrasp.loop.stages import make_grasp_planner, make_view_scorer
 from heapgrasp.planning.critic import CROP_SHAPE, DEFAULT_CRITIC, N_SCALARS, GraspCritic
 from heapgrasp.planning.view_network import NetworkViewScorer, network_input
 from heapgrasp.planning.views import ViewContext, ViewScorer, target_region
+from heapgrasp.training.train_critic import fit_critic, save_critic
 
 R = 16
 VIEW_SHAPE = (12, 6)
@@ -53,7 +54,7 @@ def torch() -> Any:
 @pytest.fixture(scope="module")
 def view_nets(torch: Any, tmp_path_factory: pytest.TempPathFactory) -> dict[int, tuple[Any, Path]]:
     """Small randomly initialised view networks of 1, 2 and 3 input channels, exported."""
-    from heapgrasp.nets import ViewNet, export_onnx
+    from heapgrasp.training import ViewNet, export_onnx
 
     folder = tmp_path_factory.mktemp("view")
     out = {}
@@ -67,7 +68,7 @@ def view_nets(torch: Any, tmp_path_factory: pytest.TempPathFactory) -> dict[int,
 
 @pytest.fixture(scope="module")
 def grasp_net(torch: Any, tmp_path_factory: pytest.TempPathFactory) -> tuple[Any, Path]:
-    from heapgrasp.nets import GraspNet, export_onnx
+    from heapgrasp.training import GraspNet, export_onnx
 
     torch.manual_seed(0)
     net = GraspNet(R, encoder_channels=(4, 8, 8), decoder_channels=(8, 8, 4)).eval()
@@ -112,7 +113,7 @@ def test_shipped_critic_equals_pytorch(torch: Any) -> None:
     """The shipped critic runs in onnxruntime (float32) as in PyTorch (float64) on the
     weights the file holds, over many random feature rows."""
     onnx = pytest.importorskip("onnx")
-    from heapgrasp.planning.critic_net import _torch_module
+    from heapgrasp.training.critic_net import _torch_module
     from onnx import numpy_helper
 
     critic = GraspCritic.load(DEFAULT_CRITIC)
@@ -224,7 +225,7 @@ def test_the_scorer_runs_with_torch_blocked(
         scorer = NetworkViewScorer({str(path)!r}, target_radius=0.08)
         s = scorer.scores(np.load({str(tmp_path / "occ.npy")!r}))
         print(json.dumps({{"scores": s.tolist(), "torch": sys.modules.get("torch") is not None,
-                          "nets": "heapgrasp.nets" in sys.modules}}))
+                          "training": "heapgrasp.training" in sys.modules}}))
         """
     )
     done = subprocess.run(
@@ -232,7 +233,7 @@ def test_the_scorer_runs_with_torch_blocked(
     )
     assert done.returncode == 0, done.stderr[-3000:]
     out = json.loads(done.stdout.strip().splitlines()[-1])
-    assert not out["torch"] and not out["nets"]
+    assert not out["torch"] and not out["training"]
     assert np.max(np.abs(np.asarray(out["scores"], dtype=np.float32) - expected)) <= 1e-5
 
 
@@ -440,8 +441,8 @@ def test_a_fitted_critic_round_trips_through_its_file(tmp_path: Path) -> None:
     x = rng.random((80, N_FEATURES)).round()
     x[:, -N_SCALARS] = rng.random(80)
     y = (x[:, -N_SCALARS] > 0.5).astype(float)
-    critic = GraspCritic.fit(x, y, components=3, threshold=0.55)
-    path = critic.save(tmp_path / "c.onnx", command="test", metadata={"data": "synthetic"})
+    critic = fit_critic(x, y, components=3, threshold=0.55)
+    path = save_critic(critic, tmp_path / "c.onnx", command="test", metadata={"data": "synthetic"})
     back = GraspCritic.load(path)
     assert back.model == "linear" and back.threshold == pytest.approx(0.55)
     assert back.metadata["data"] == "synthetic" and back.metadata["command"] == "test"

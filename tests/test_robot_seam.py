@@ -196,7 +196,7 @@ def test_a_phase_with_the_view_network_runs_on_a_robot_without_torch(tmp_path: P
     two-channel ViewNet, exported to ONNX) on the fake robot: no scene truth, no PyBullet,
     no PyTorch."""
     torch = pytest.importorskip("torch")
-    from heapgrasp.nets import ViewNet, export_onnx
+    from heapgrasp.training import ViewNet, export_onnx
 
     torch.manual_seed(0)
     net = ViewNet(in_channels=2, encoder_channels=(4, 8, 8), compress_channels=8)
@@ -222,7 +222,7 @@ def test_a_phase_with_the_view_network_runs_on_a_robot_without_torch(tmp_path: P
             "grasp": planned.grasp is not None,
             "paths": len(robot.arm.paths),
             "imported": [n for n in BLOCKED if n in sys.modules],
-            "nets": "heapgrasp.nets" in sys.modules,
+            "training": "heapgrasp.training" in sys.modules,
         }}))
         """
     )
@@ -231,7 +231,7 @@ def test_a_phase_with_the_view_network_runs_on_a_robot_without_torch(tmp_path: P
     )
     assert done.returncode == 0, done.stderr[-3000:]
     result = json.loads(done.stdout.strip().splitlines()[-1])
-    assert result["imported"] == [] and not result["nets"]
+    assert result["imported"] == [] and not result["training"]
     assert result["paths"] == RunConfig().L  # L view waypoints chosen from the network's scores
     assert result["grasp"]
 

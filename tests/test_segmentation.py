@@ -18,11 +18,11 @@ os.environ.setdefault("HF_HUB_OFFLINE", "1")
 from heapgrasp.cli import main
 from heapgrasp.inference.errors import WeightsError
 from heapgrasp.loop.config import ConfigError, RunConfig
-from heapgrasp.nets import segmentation as seg
-from heapgrasp.nets.training import read_safetensors
 from heapgrasp.perception import segnet
 from heapgrasp.perception.frames import Frame
 from heapgrasp.perception.segnet import NetworkSegmenter
+from heapgrasp.training import segmentation as seg
+from heapgrasp.training.common import read_safetensors
 from PIL import Image
 
 

@@ -1,4 +1,4 @@
-"""The grasp network's training (heapgrasp.nets.grasp_data, heapgrasp.nets.train_grasps,
+"""The grasp network's training (heapgrasp.training.grasp_data, heapgrasp.training.train_grasps,
 heapgrasp grasps train): VGN's losses and the gripper's symmetry, the exact
 augmentations, the metrics, exact resume, the exported ONNX file in the planner, and the
 command's errors. A tiny synthetic dataset of 40³ grids in the format of ``heapgrasp
@@ -18,7 +18,8 @@ pytest.importorskip("safetensors")
 
 from heapgrasp.cli import main  # noqa: E402
 from heapgrasp.geometry.grid import GridFrame  # noqa: E402
-from heapgrasp.nets.grasp_data import (  # noqa: E402
+from heapgrasp.training.common import TrainSetupError  # noqa: E402
+from heapgrasp.training.grasp_data import (  # noqa: E402
     DATA_FORMAT,
     Augment,
     GraspDataError,
@@ -29,7 +30,7 @@ from heapgrasp.nets.grasp_data import (  # noqa: E402
     make_batch,
     quat_multiply,
 )
-from heapgrasp.nets.train_grasps import (  # noqa: E402
+from heapgrasp.training.train_grasps import (  # noqa: E402
     GraspTrainConfig,
     average_precision,
     grasp_losses,
@@ -37,7 +38,6 @@ from heapgrasp.nets.train_grasps import (  # noqa: E402
     rotation_error_deg,
     train,
 )
-from heapgrasp.nets.training import TrainSetupError  # noqa: E402
 
 R = 40
 SIZE = 0.30
@@ -364,7 +364,7 @@ def test_init_starts_from_given_weights_and_refuses_others(tmp_path: Path, root:
         progress=False,
     )
     start = tmp_path / "a" / "best.safetensors"
-    from heapgrasp.nets.train_grasps import save_grasp_network
+    from heapgrasp.training.train_grasps import save_grasp_network
 
     weights, _ = save_grasp_network(
         first.net, tmp_path / "start.safetensors", {"input_kind": "occupancy"}

@@ -1,4 +1,4 @@
-"""The view network's training (heapgrasp.nets.train_views, heapgrasp views train): the
+"""The view network's training (heapgrasp.training.train_views, heapgrasp views train): the
 problem's symmetries proved with the exact scorer, exact resume, the metrics, and the
 command's errors."""
 
@@ -19,8 +19,9 @@ import trimesh  # noqa: E402
 from heapgrasp.cli import main  # noqa: E402
 from heapgrasp.geometry.camera import CameraSpec  # noqa: E402
 from heapgrasp.geometry.motion import ViewSphere  # noqa: E402
-from heapgrasp.nets.models import ViewNet  # noqa: E402
-from heapgrasp.nets.train_views import (  # noqa: E402
+from heapgrasp.planning.views import OracleViewScorer, ViewContext  # noqa: E402
+from heapgrasp.training.models import ViewNet  # noqa: E402
+from heapgrasp.training.train_views import (  # noqa: E402
     TrainConfig,
     TrainSetupError,
     distinct_views,
@@ -30,7 +31,7 @@ from heapgrasp.nets.train_views import (  # noqa: E402
     top1_regret,
     train,
 )
-from heapgrasp.nets.view_data import (  # noqa: E402
+from heapgrasp.training.view_data import (  # noqa: E402
     SYMMETRIES,
     ViewDataError,
     batch_inputs,
@@ -39,8 +40,7 @@ from heapgrasp.nets.view_data import (  # noqa: E402
     transform_grid,
     transform_scores,
 )
-from heapgrasp.planning.view_eval import evaluate, selection_agreement  # noqa: E402
-from heapgrasp.planning.views import OracleViewScorer, ViewContext  # noqa: E402
+from heapgrasp.training.view_eval import evaluate, selection_agreement  # noqa: E402
 
 SIZE = 0.30
 THETA_MAX = math.pi / 5

@@ -23,13 +23,14 @@ from heapgrasp.inference.errors import WeightsError
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.stages import make_critic
 from heapgrasp.planning.critic import (
+    ARRAYS,
     CROP_SHAPE,
     DEFAULT_CRITIC,
     N_SCALARS,
     GraspCritic,
     read_critic_arrays,
 )
-from heapgrasp.planning.critic_net import ARRAYS, convert_npz
+from heapgrasp.training.critic_net import convert_npz
 
 N_FEATURES = 2 * int(np.prod(CROP_SHAPE)) + N_SCALARS
 
@@ -391,7 +392,7 @@ def test_heapgrasp_run_refuses_a_bad_critic(
 def nets(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Small valid grasp- and view-network files."""
     torch = pytest.importorskip("torch")
-    from heapgrasp.nets import GraspNet, ViewNet, save_weights
+    from heapgrasp.training import GraspNet, ViewNet, save_weights
 
     folder = tmp_path_factory.mktemp("nets")
     torch.manual_seed(0)
@@ -452,7 +453,7 @@ _DROP = object()
 
 
 def test_valid_network_files_load(nets: dict[str, Path]) -> None:
-    from heapgrasp.nets import load_grasp_net, load_view_net, read_metadata
+    from heapgrasp.training import load_grasp_net, load_view_net, read_metadata
 
     assert load_grasp_net(nets["grasp"]).resolution == 16
     assert load_view_net(nets["view"]).view_shape == (12, 6)
@@ -461,7 +462,7 @@ def test_valid_network_files_load(nets: dict[str, Path]) -> None:
 
 @pytest.mark.parametrize("kind", ["grasp", "view"])
 def test_broken_network_files(nets: dict[str, Path], tmp_path: Path, kind: str) -> None:
-    from heapgrasp.nets import load_grasp_net, load_view_net, read_metadata
+    from heapgrasp.training import load_grasp_net, load_view_net, read_metadata
 
     load = load_grasp_net if kind == "grasp" else load_view_net
     data = nets[kind].read_bytes()
@@ -520,7 +521,7 @@ def test_bad_network_tensors(
     change: Callable[[dict[str, Any]], None],
     match: str,
 ) -> None:
-    from heapgrasp.nets import load_grasp_net, load_view_net
+    from heapgrasp.training import load_grasp_net, load_view_net
 
     for kind, load in (("grasp", load_grasp_net), ("view", load_view_net)):
         path = _net_with(nets[kind], tmp_path / f"{kind}.pt", change)
@@ -553,7 +554,7 @@ def test_bad_network_metadata(
     change: Callable[[dict[str, Any]], None],
     match: str,
 ) -> None:
-    from heapgrasp.nets import load_grasp_net
+    from heapgrasp.training import load_grasp_net
 
     path = _net_with(nets["grasp"], tmp_path / "meta.pt", change)
     with pytest.raises(WeightsError, match=match) as exc:
@@ -565,7 +566,7 @@ def test_network_payload_with_code_is_refused(tmp_path: Path) -> None:
     torch = pytest.importorskip("torch")
     from fractions import Fraction
 
-    from heapgrasp.nets import read_metadata
+    from heapgrasp.training import read_metadata
 
     path = tmp_path / "pickled.pt"
     torch.save({"format": "heapgrasp-weights", "x": Fraction(1, 2)}, path)
@@ -575,7 +576,7 @@ def test_network_payload_with_code_is_refused(tmp_path: Path) -> None:
 
 def test_network_path_that_is_not_a_file(tmp_path: Path) -> None:
     pytest.importorskip("torch")
-    from heapgrasp.nets import load_view_net
+    from heapgrasp.training import load_view_net
 
     with pytest.raises(WeightsError, match="not a file"):
         load_view_net(tmp_path)
@@ -590,7 +591,7 @@ def test_bad_network_is_a_config_error_before_any_scene(
     onnx = pytest.importorskip("onnx")
     from heapgrasp.inference import META_SHA256, seal
     from heapgrasp.loop.stages import make_grasp_planner, make_view_scorer
-    from heapgrasp.nets import GraspNet, ViewNet, export_onnx
+    from heapgrasp.training import GraspNet, ViewNet, export_onnx
     from onnx import numpy_helper
 
     def nan_copy(src: Path, out: Path) -> Path:

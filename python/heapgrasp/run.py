@@ -205,15 +205,11 @@ def _safe_scene(
 
 def _init_worker() -> None:
     # One core per scene: the pool provides the parallelism; a worker dies with the run.
+    # The networks run with onnxruntime, whose threads follow HEAPGRASP_NUM_THREADS (set
+    # by init_worker); nothing at run time imports PyTorch.
     from heapgrasp.loop.workers import init_worker
 
     init_worker()
-    try:
-        import torch
-
-        torch.set_num_threads(1)
-    except ImportError:
-        pass
 
 
 def load_records(out: Path) -> list[dict[str, Any]]:

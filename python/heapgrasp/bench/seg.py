@@ -30,8 +30,8 @@ def measure(encoder: str, width: int, height: int, *, threads: int, repeats: int
     os.environ.setdefault("HF_HUB_OFFLINE", "1")
     import torch
 
-    from heapgrasp.nets.segmentation import build_model, export_segmentation
     from heapgrasp.perception.segnet import NetworkSegmenter
+    from heapgrasp.training.segmentation import build_model, export_segmentation
 
     torch.manual_seed(0)
     rgb = np.random.default_rng(0).integers(0, 256, (height, width, 3)).astype(np.uint8)

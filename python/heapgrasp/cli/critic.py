@@ -10,12 +10,12 @@ evaluation.
 
 ``data`` runs HEAPGrasp's phases on train-split scenes and tries every candidate in the
 simulator (:mod:`heapgrasp.data.critic`); an interrupted run continues where it
-stopped. ``train`` cross-validates by scene (:mod:`heapgrasp.planning.critic_train`),
+stopped. ``train`` cross-validates by scene (:mod:`heapgrasp.training.train_critic`),
 fits on all scenes, and writes the critic with its command and the cross-validated
 measurements, plus ``FILE.json`` with the same report. ``eval`` scores a critic file on
 scene files without refitting and prints the same report. ``convert`` turns a critic
 of the former ``.npz`` format into the ONNX file heapgrasp runs
-(:func:`heapgrasp.planning.critic_net.convert_npz`).
+(:func:`heapgrasp.training.critic_net.convert_npz`).
 """
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     from heapgrasp.data.critic import load_dataset
     from heapgrasp.geometry.grid import GridFrame
     from heapgrasp.planning.critic import GraspCritic
-    from heapgrasp.planning.critic_train import design_matrix, evaluation_report
+    from heapgrasp.training.train_critic import design_matrix, evaluation_report
 
     critic = GraspCritic.load(args.critic)
     paths = _scene_files([Path(d) for d in args.data])
@@ -98,8 +98,12 @@ def _evaluate(args: argparse.Namespace) -> int:
 def _train(args: argparse.Namespace) -> int:
     from heapgrasp.data.critic import load_dataset
     from heapgrasp.geometry.grid import GridFrame
-    from heapgrasp.planning.critic import GraspCritic
-    from heapgrasp.planning.critic_train import cross_validate, design_matrix
+    from heapgrasp.training.train_critic import (
+        cross_validate,
+        design_matrix,
+        fit_critic,
+        save_critic,
+    )
 
     folders = [Path(d) for d in args.data]
     paths = _scene_files(folders)
@@ -121,7 +125,7 @@ def _train(args: argparse.Namespace) -> int:
         folds=args.folds,
         **model,
     )
-    critic = GraspCritic.fit(
+    critic = fit_critic(
         design.features,
         design.labels,
         threshold=args.threshold,
@@ -137,7 +141,7 @@ def _train(args: argparse.Namespace) -> int:
         "cross_validation": report,
     }
     out = Path(args.out)
-    critic.save(out, command=command, metadata=meta)
+    save_critic(critic, out, command=command, metadata=meta)
     out.with_suffix(".json").write_text(json.dumps({"command": command, **meta}, indent=2) + "\n")
     print(json.dumps(report, indent=2))
     print(f"wrote {out} and {out.with_suffix('.json')}")
@@ -146,7 +150,7 @@ def _train(args: argparse.Namespace) -> int:
 
 def _convert(args: argparse.Namespace) -> int:
     from heapgrasp.planning.critic import GraspCritic
-    from heapgrasp.planning.critic_net import convert_npz
+    from heapgrasp.training.critic_net import convert_npz
 
     command = "heapgrasp " + shlex.join(getattr(args, "argv", sys.argv[1:]))
     out = convert_npz(args.src, args.dst, command=command)

@@ -30,7 +30,7 @@ prints the network's precision@k on those phases.
     heapgrasp grasps data runs/grasps/val --split val ...
     heapgrasp grasps train runs/grasps --out runs/grasp-net --input occupancy
 
-trains the grasp network (:mod:`heapgrasp.nets.train_grasps`) on every ``train``
+trains the grasp network (:mod:`heapgrasp.training.train_grasps`) on every ``train``
 dataset found, validates on the ``val`` ones, evaluates the best epoch on the ``test``
 ones and writes ``OUT/grasp_network.{safetensors,json,onnx}`` and ``OUT/metrics.json``.
 Needs ``pip install 'heapgrasp[train]'``. Bad input exits 2 with a message naming it.
@@ -84,20 +84,20 @@ def _loop_data(args: argparse.Namespace) -> int:
 
 def _train(args: argparse.Namespace) -> int:
     require_training("grasps train")
-    from heapgrasp.nets.device import resolve_device
-    from heapgrasp.nets.grasp_data import (
+    from heapgrasp.training.common import TrainSetupError
+    from heapgrasp.training.device import resolve_device
+    from heapgrasp.training.grasp_data import (
         GraspDataError,
         concatenate,
         find_datasets,
         load_grasp_dataset,
     )
-    from heapgrasp.nets.train_grasps import (
+    from heapgrasp.training.train_grasps import (
         GraspTrainConfig,
         check_datasets,
         train,
         write_outputs,
     )
-    from heapgrasp.nets.training import TrainSetupError
 
     workers = threads(args)
     try:

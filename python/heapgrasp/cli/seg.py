@@ -11,7 +11,7 @@ HEAPGrasp §V (DeepLabv3+; background, transparent, specular, opaque).
         --class transparent=glass,bottle --class specular=can --class opaque=box
 
 ``DATA_DIR`` holds ``images/*.png|jpg`` and ``masks/*.png`` of the same stems, masks
-holding class ids 0..3 (:mod:`heapgrasp.nets.segmentation`). ``train`` writes
+holding class ids 0..3 (:mod:`heapgrasp.training.segmentation`). ``train`` writes
 ``OUT/segmentation.onnx`` (run by ``segmenter = "network"``, ``seg_weights = ...``),
 ``metrics.json`` (per-class IoU, mIoU, pixel accuracy on the validation split),
 ``metrics.csv``, ``metrics.png`` and a checkpoint per epoch (``--resume`` continues).
@@ -66,7 +66,7 @@ def size_arg(text: str) -> tuple[int, int]:
 
 def _training() -> Any:
     try:
-        from heapgrasp.nets import segmentation
+        from heapgrasp.training import segmentation
     except ImportError as exc:
         raise ImportError(f"{exc} (pip install 'heapgrasp[train]')") from None
     return segmentation
@@ -164,7 +164,7 @@ def _eval(args: argparse.Namespace) -> int:
     except (ImportError, FileNotFoundError, ValueError) as exc:
         return _error(str(exc))
     metrics = seg.evaluate(net.predict, folder, progress=not args.quiet)
-    from heapgrasp.nets.training import finite
+    from heapgrasp.training.common import finite
 
     print(_table(metrics))
     doc = finite({"weights": str(args.weights), "data": str(data), **metrics})

@@ -32,8 +32,10 @@ def config_error(message: str) -> Exception:
 def require_training(command: str) -> None:
     """A ConfigError naming what to install when PyTorch or safetensors is missing
     (``command``: e.g. ``"views train"``)."""
+    from heapgrasp.training import require_torch
+
     try:
-        importlib.import_module("heapgrasp.nets")
+        require_torch()
         importlib.import_module("safetensors")
     except ImportError as exc:
         missing = (exc.name or "PyTorch").split(".")[0]

@@ -16,7 +16,7 @@ U × V candidates (:mod:`heapgrasp.data.views`).
     heapgrasp views train runs/views-train --val runs/views-val --test runs/views-test \\
         --out runs/view-net --epochs 30
 
-Trains on the ``train`` datasets (:mod:`heapgrasp.nets.train_views`), validates on the
+Trains on the ``train`` datasets (:mod:`heapgrasp.training.train_views`), validates on the
 ``val`` dataset after every epoch, keeps the best epoch's weights and writes
 ``OUT/view_network.safetensors`` with its model card ``OUT/view_network.json`` and
 ``OUT/metrics.json`` (validation and, with ``--test``, test metrics). Needs
@@ -61,21 +61,21 @@ def _train(args: argparse.Namespace) -> int:
     require_training("views train")
     import torch
 
-    from heapgrasp.nets.device import resolve_device
-    from heapgrasp.nets.train_views import (
+    from heapgrasp.training.common import card_header, data_sources, write_metrics
+    from heapgrasp.training.device import resolve_device
+    from heapgrasp.training.train_views import (
         TrainConfig,
         TrainSetupError,
         save_view_network,
         train,
     )
-    from heapgrasp.nets.training import card_header, data_sources, write_metrics
-    from heapgrasp.nets.view_data import (
+    from heapgrasp.training.view_data import (
         ViewDataError,
         check_compatible,
         concatenate,
         load_view_dataset,
     )
-    from heapgrasp.planning.view_eval import evaluate
+    from heapgrasp.training.view_eval import evaluate
 
     workers = threads(args)
     try:
@@ -194,7 +194,7 @@ def _train(args: argparse.Namespace) -> int:
     weights, meta = save_view_network(result.net, out / "view_network.safetensors", card)
     written = [weights, meta, out / "metrics.json"]
     try:
-        export = importlib.import_module("heapgrasp.nets.export")
+        export = importlib.import_module("heapgrasp.training.export")
     except ImportError as exc:  # no exporter in this version, or onnx not installed
         print(f"no ONNX file written ({exc})", file=sys.stderr)
     else:

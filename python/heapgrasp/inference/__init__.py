@@ -3,7 +3,7 @@ onnxruntime (no PyTorch at run time).
 
 The view network (eq. 13), the grasp network (eq. 11) and the grasp critic are trained
 with PyTorch (``pip install heapgrasp[train]``) and shipped as ONNX files
-(:func:`heapgrasp.nets.export_onnx`, :mod:`heapgrasp.planning.critic_net`).
+(:func:`heapgrasp.training.export_onnx`, :mod:`heapgrasp.training.critic_net`).
 :class:`OnnxNetwork` opens one, checks it before any use and runs it on the CPU, or on a
 CUDA device where onnxruntime has the CUDA execution provider (``onnxruntime-gpu``).
 

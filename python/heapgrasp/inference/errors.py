@@ -2,7 +2,7 @@
 
 :class:`WeightsError` is raised wherever a weights file is read: the ONNX networks
 (:mod:`heapgrasp.inference.network`), the grasp critic's arrays
-(:mod:`heapgrasp.planning.critic`) and PyTorch checkpoints (:mod:`heapgrasp.nets.weights`);
+(:mod:`heapgrasp.planning.critic`) and PyTorch checkpoints (:mod:`heapgrasp.training.weights`);
 it lives in the lowest layer that reads weights, so that none needs the others (nor
 PyTorch) to raise or catch it. Checkpoints and the critic's arrays are zip archives
 (``torch.save``, ``numpy.savez``): :func:`check_archive` reads one whole before either

@@ -332,7 +332,7 @@ class OnnxNetwork:
         if data[:4] == b"PK\x03\x04":
             return (
                 "a zip archive (a PyTorch .pt or numpy .npz file?), not an ONNX model; "
-                "networks ship as ONNX (heapgrasp.nets.export_onnx)"
+                "networks ship as ONNX (heapgrasp.training.export_onnx)"
             )
         return f"not a valid ONNX model (corrupt, truncated or another format): {_detail(exc)}"
 

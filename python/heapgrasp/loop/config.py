@@ -272,7 +272,7 @@ class RunConfig:
         choice("method", METHODS)
         choice("view_planner", VIEW_PLANNERS)
         choice("grasp_planner", GRASP_PLANNERS)
-        # The form only: heapgrasp.nets.resolve_device checks the device against
+        # The form only: heapgrasp.training.resolve_device checks the device against
         # PyTorch when a network is built (this module does not import PyTorch).
         if not (
             isinstance(self.net_device, str)

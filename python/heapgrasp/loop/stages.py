@@ -91,7 +91,7 @@ def _weights(path: str | None, kind: Kind, option: str) -> Path:
     if found is None:
         raise ConfigError(
             f"{option}: no {kind} weights ship with this version; pass an ONNX weights "
-            f"file (heapgrasp.nets.export_onnx writes one), or use the analytic/oracle planners"
+            f"file (heapgrasp.training.export_onnx writes one), or use the analytic/oracle planners"
         )
     return found
 

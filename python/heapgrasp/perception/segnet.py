@@ -6,7 +6,7 @@ The paper segments every RGB image into *background*, *transparent*, *specular* 
 with the union of the three object classes. :class:`NetworkSegmenter` runs such a
 network from its ONNX file with onnxruntime, like the other shipped networks
 (:mod:`heapgrasp.inference`; no PyTorch at run time). ``heapgrasp seg train``
-(:mod:`heapgrasp.nets.segmentation`) writes the file.
+(:mod:`heapgrasp.training.segmentation`) writes the file.
 
 **The file.** An ONNX model with the metadata of :mod:`heapgrasp.inference`
 (``heapgrasp.kind`` = ``"segmentation-network"``, ``heapgrasp.format_version``,

@@ -7,4 +7,7 @@
 * views — :mod:`~heapgrasp.planning.views` (eq. 12-14 scorers, fixed views),
   :mod:`~heapgrasp.planning.view_network` (eq. 13);
 * :mod:`~heapgrasp.planning.selection` — next-pose selection (eq. 15-19).
+
+What runs at grasp time only: fitting the critic, training the networks and their
+evaluation are :mod:`heapgrasp.training`'s, which nothing here imports.
 """

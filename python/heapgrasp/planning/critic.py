@@ -24,18 +24,18 @@ Features of a candidate (:func:`candidate_features`):
 The model (:class:`GraspCritic`), after standardisation: either (``linear``) PCA of the
 crops and logistic regression with an L2 penalty, fitted by Newton's method, or
 (``cnn``) a small 3-D convolutional network on the crops and the scalars
-(:mod:`heapgrasp.planning.critic_net`; trained with PyTorch). Trained on the train
-split's objects with :mod:`heapgrasp.data.critic`. Either model, its standardisation
-included, is one ONNX file holding the command and measurements that made it, run with
-onnxruntime as every shipped network (:class:`heapgrasp.inference.OnnxNetwork`);
-:func:`read_critic_arrays` reads the former ``.npz`` files for
-:func:`heapgrasp.planning.critic_net.convert_npz`.
+(:mod:`heapgrasp.training.critic_net`; trained with PyTorch). Trained on the train
+split's objects with :mod:`heapgrasp.data.critic` (fitted and saved by
+:mod:`heapgrasp.training.train_critic`). Either model, its standardisation included, is
+one ONNX file holding the command and measurements that made it, run with onnxruntime as
+every shipped network (:class:`heapgrasp.inference.OnnxNetwork`); this module only
+reads and runs critics. :func:`read_critic_arrays` reads the former ``.npz`` files for
+:func:`heapgrasp.training.critic_net.convert_npz`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import datetime as _dt
 import json
 import math
 import os
@@ -55,6 +55,7 @@ from heapgrasp.inference.errors import WeightsError, check_archive
 from heapgrasp.planning.volumes import GraspCandidate
 
 __all__ = [
+    "ARRAYS",
     "CRITIC_FORMAT",
     "CROP_SHAPE",
     "DEFAULT_CRITIC",
@@ -63,7 +64,6 @@ __all__ = [
     "WeightsError",
     "candidate_features",
     "crop_in_grasp_frame",
-    "fit_logistic",
     "read_critic_arrays",
     "view_features",
 ]
@@ -81,6 +81,11 @@ DEFAULT_CRITIC = Path(__file__).resolve().parent.parent / "weights" / "critic.on
 
 N_SCALARS = 12
 _N_FEATURES = 2 * int(np.prod(CROP_SHAPE)) + N_SCALARS
+
+ARRAYS = ("conv1_w", "conv1_b", "conv2_w", "conv2_b", "fc1_w", "fc1_b", "fc2_w", "fc2_b")
+"""The ``cnn`` model's arrays, in the order of the fields of
+:class:`heapgrasp.training.critic_net.ConvCritic` (``net_<name>`` in a former ``.npz``
+file)."""
 
 
 def cnn_shapes(c1: int, c2: int, hidden: int) -> dict[str, tuple[int, ...]]:
@@ -214,27 +219,6 @@ def flip_pose(pose: npt.ArrayLike) -> F64:
     return p
 
 
-def fit_logistic(x: F64, y: npt.ArrayLike, l2: float = 1.0, iterations: int = 50) -> F64:
-    """Logistic regression ``P(y=1) = σ(w·[x, 1])`` by Newton's method, L2 penalty
-    ``l2`` on ``w`` (not on the bias). Returns ``w`` with the bias last."""
-    t = np.asarray(y, dtype=np.float64)
-    if x.ndim != 2 or len(x) != len(t) or len(t) == 0:
-        raise ValueError(f"x must be (n, d) with n = len(y) > 0, got {x.shape} and {t.shape}")
-    xb = np.hstack([x, np.ones((len(x), 1))])
-    w = np.zeros(xb.shape[1])
-    reg = np.full(xb.shape[1], l2)
-    reg[-1] = 0.0
-    for _ in range(iterations):
-        prob = 1.0 / (1.0 + np.exp(-np.clip(xb @ w, -30, 30)))
-        grad = xb.T @ (prob - t) + reg * w
-        hess = (xb * (prob * (1 - prob))[:, None]).T @ xb + np.diag(reg) + 1e-9 * np.eye(len(w))
-        step = np.linalg.solve(hess, grad)
-        w -= step
-        if np.max(np.abs(step)) < 1e-8:
-            break
-    return w
-
-
 MODELS = ("linear", "cnn")
 """The critic's model kinds (module docstring)."""
 
@@ -250,7 +234,8 @@ def _unit(name: str, value: float) -> float:
 class GraspCritic:
     """A critic model (:data:`MODELS`) as an ONNX network from feature rows
     (:func:`candidate_features`) to logits, with the thresholds it is used with (module
-    docstring). Built by :meth:`fit` or :meth:`load`."""
+    docstring). Built by :meth:`load` (or, in training,
+    :func:`heapgrasp.training.train_critic.fit_critic`)."""
 
     network: OnnxNetwork
     """The model, standardisation included: ``features`` ``(B, F)`` → ``logits``."""
@@ -284,54 +269,6 @@ class GraspCritic:
         (logit,) = self.network.run(f.astype(np.float32))
         z = np.clip(logit.astype(np.float64), -30, 30)
         return np.asarray(1.0 / (1.0 + np.exp(-z)))
-
-    @classmethod
-    def fit(
-        cls,
-        features: F64,
-        labels: npt.ArrayLike,
-        *,
-        components: int = 32,
-        l2: float = 1.0,
-        threshold: float = 0.7,
-        candidate_epsilon: float = 0.2,
-        model: str = "linear",
-        epochs: int = 30,
-        weight_decay: float = 1e-2,
-        seed: int = 0,
-    ) -> GraspCritic:
-        """Fits the model on rows of :func:`candidate_features` and 0/1 labels:
-        ``linear`` uses ``components`` and ``l2``; ``cnn`` uses ``epochs``,
-        ``weight_decay`` and ``seed`` (:func:`~heapgrasp.planning.critic_net.fit_conv`,
-        needs PyTorch). Building the model's graph needs the ``onnx`` package
-        (``heapgrasp[train]``)."""
-        from heapgrasp.planning.critic_net import critic_onnx, fit_conv
-
-        if model not in MODELS:
-            raise ValueError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
-        f = np.asarray(features, dtype=np.float64)
-        mean = f.mean(axis=0)
-        scale = f.std(axis=0)
-        scale[scale < 1e-6] = 1.0
-        z = (f - mean) / scale
-        n_crop = f.shape[1] - N_SCALARS
-        hparams = {
-            "threshold": _unit("threshold", threshold),
-            "candidate_epsilon": _unit("candidate_epsilon", candidate_epsilon),
-        }
-        if model == "cnn":
-            net = fit_conv(z, labels, epochs=epochs, weight_decay=weight_decay, seed=seed)
-            data = critic_onnx(mean, scale, net=net, hparams=hparams, provenance={})
-        else:
-            _, _, vt = np.linalg.svd(z[:, :n_crop], full_matrices=False)
-            comps = vt[: min(components, len(vt))]
-            design = np.hstack([z[:, :n_crop] @ comps.T, z[:, n_crop:]])
-            w = fit_logistic(design, labels, l2=l2)
-            data = critic_onnx(
-                mean, scale, components=comps, weights=w, hparams=hparams, provenance={}
-            )
-        network = OnnxNetwork.from_bytes(data, kind="grasp-critic", name=f"<fitted {model} critic>")
-        return cls(network, threshold, candidate_epsilon)
 
     # ------------------------------------------------------------------ use
     def score_candidates(
@@ -377,26 +314,6 @@ class GraspCritic:
         return sorted(kept, key=lambda c: -c.score)
 
     # ------------------------------------------------------------------ files
-    def save(
-        self, path: str | os.PathLike[str], *, command: str, metadata: dict[str, Any] | None = None
-    ) -> Path:
-        """Writes the critic as an ONNX file (atomically), its provenance this critic's
-        :attr:`metadata` updated with ``metadata``, ``command`` and the time. Needs the
-        ``onnx`` package (``heapgrasp[train]``)."""
-        from heapgrasp.inference import write_atomically
-        from heapgrasp.planning.critic_net import with_metadata
-
-        meta = dict(self.metadata)
-        meta.update(metadata or {})
-        meta.update(
-            command=command,
-            created=_dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        )
-        hparams = dict(self.network.hparams)
-        hparams.update(threshold=self.threshold, candidate_epsilon=self.candidate_epsilon)
-        data = with_metadata(self.network.model_bytes, hparams, meta)
-        return write_atomically(data, path)
-
     @classmethod
     def load(cls, path: str | os.PathLike[str], *, device: str = "cpu") -> GraspCritic:
         """Reads a critic file (ONNX, ``kind`` ``grasp-critic``), checked whole: a missing
@@ -504,7 +421,7 @@ def read_critic_arrays(
     path: str | os.PathLike[str],
 ) -> tuple[dict[str, npt.NDArray[Any]], dict[str, Any]]:
     """The arrays and the metadata of the former ``.npz`` critic file ``path`` (the input
-    of :func:`~heapgrasp.planning.critic_net.convert_npz`), checked whole: the file
+    of :func:`heapgrasp.training.critic_net.convert_npz`), checked whole: the file
     (:class:`FileNotFoundError` if missing), ``format`` and ``version``, every array's
     presence, dtype (floating point), shape and finite values, the scale of each feature
     (> 0: features are divided by it), ``threshold`` and ``candidate_epsilon`` in [0, 1],
@@ -539,8 +456,6 @@ def read_critic_arrays(
         if not 0.0 <= value <= 1.0:
             raise WeightsError(p, f"{name!r} is {value}, expected a number in [0, 1]")
     if version == 2:
-        from heapgrasp.planning.critic_net import ARRAYS
-
         names = {k: f"net_{k}" for k in ARRAYS}
         c1 = len(_floats(p, arrays, names["conv1_b"], 1))
         c2 = len(_floats(p, arrays, names["conv2_b"], 1))

@@ -1,5 +1,5 @@
 """The learned grasp planner of HEAPGrasp §IV-B (eq. 11): a VGN-style grasp network
-(:class:`heapgrasp.nets.GraspNet`, exported to ONNX) run on the high-confidence occupancy
+(:class:`heapgrasp.training.GraspNet`, exported to ONNX) run on the high-confidence occupancy
 grid ``Ŝ≥λ`` (or on a TSDF for the VGN baseline, ``input_kind = "tsdf"``).
 
 The network runs from its ONNX file with onnxruntime (:mod:`heapgrasp.inference`);
@@ -103,7 +103,7 @@ class NetworkGraspPlanner:
         if not isinstance(path, str | os.PathLike):
             raise TypeError(
                 f"path must be the grasp network's ONNX file, got {type(path).__name__} "
-                f"(export a GraspNet with heapgrasp.nets.export_onnx)"
+                f"(export a GraspNet with heapgrasp.training.export_onnx)"
             )
         self.network = OnnxNetwork(path, kind="grasp-network", device=device)
         if self.network.input.shape[1] != 1:

@@ -108,7 +108,7 @@ class NetworkViewScorer:
         if not isinstance(path, str | os.PathLike):
             raise TypeError(
                 f"path must be the view network's ONNX file, got {type(path).__name__} "
-                f"(export a ViewNet with heapgrasp.nets.export_onnx)"
+                f"(export a ViewNet with heapgrasp.training.export_onnx)"
             )
         if not (isinstance(target_radius, int | float) and math.isfinite(target_radius)):
             raise ValueError(f"target_radius must be a finite number >= 0, got {target_radius!r}")

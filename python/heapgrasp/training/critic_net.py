@@ -44,13 +44,18 @@ from heapgrasp.inference import (
     seal,
     write_atomically,
 )
-from heapgrasp.planning.critic import CROP_SHAPE, N_SCALARS, cnn_shapes, read_critic_arrays
+from heapgrasp.planning.critic import (
+    ARRAYS,
+    CROP_SHAPE,
+    N_SCALARS,
+    cnn_shapes,
+    read_critic_arrays,
+)
 
 if TYPE_CHECKING:
     import onnx
 
 __all__ = [
-    "ARRAYS",
     "OPSET",
     "ConvCritic",
     "convert_npz",
@@ -61,9 +66,6 @@ __all__ = [
 
 F64 = npt.NDArray[np.float64]
 
-ARRAYS = ("conv1_w", "conv1_b", "conv2_w", "conv2_b", "fc1_w", "fc1_b", "fc2_w", "fc2_b")
-"""The network's arrays, in the order of :class:`ConvCritic`'s fields."""
-
 #: ONNX opset of critic files.
 OPSET = 17
 
@@ -73,7 +75,8 @@ _N_FEATURES = _N_CROP + N_SCALARS
 
 @dataclass
 class ConvCritic:
-    """The ``cnn`` model's weights (numpy, PyTorch's layouts), checked to fit together;
+    """The ``cnn`` model's weights (numpy, PyTorch's layouts; fields in the order of
+    :data:`~heapgrasp.planning.critic.ARRAYS`), checked to fit together;
     :func:`critic_onnx` makes them a graph that runs."""
 
     conv1_w: F64
@@ -93,7 +96,7 @@ class ConvCritic:
                 raise ValueError(f"critic network: {name} must have shape {shape}, got {got}")
 
     def arrays(self) -> dict[str, F64]:
-        """The weights by name (:data:`ARRAYS`)."""
+        """The weights by name (:data:`~heapgrasp.planning.critic.ARRAYS`)."""
         return {name: getattr(self, name) for name in ARRAYS}
 
     def hparams(self) -> dict[str, int]:

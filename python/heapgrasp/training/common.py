@@ -1,5 +1,5 @@
-"""What the trainers of the networks share (:mod:`heapgrasp.nets.train_views`,
-:mod:`heapgrasp.nets.train_grasps`): safetensors files written atomically, the training
+"""What the trainers of the networks share (:mod:`heapgrasp.training.train_views`,
+:mod:`heapgrasp.training.train_grasps`): safetensors files written atomically, the training
 checkpoint and its exact resume, the per-epoch CSV and plot, and a trained network's
 weights file with its model card.
 

@@ -11,7 +11,7 @@ fine-tuning an ImageNet-pretrained model on 427 real images).
   same stem, masks holding class ids 0..3 (checked when the folder is opened);
 * :func:`train` — Adam on the cross-entropy, flips and colour jitter, every epoch
   checkpointed (``checkpoint.safetensors``, resumable bit for bit:
-  :mod:`heapgrasp.nets.training`), the best epoch by validation mIoU kept, then
+  :mod:`heapgrasp.training.common`), the best epoch by validation mIoU kept, then
   ``segmentation.onnx`` (:func:`export_segmentation`), ``metrics.json`` and
   ``metrics.png``;
 * :func:`confusion`, :func:`iou_metrics`, :func:`evaluate` — per-class IoU, mIoU (all
@@ -40,8 +40,7 @@ from torch import Tensor, nn
 
 from heapgrasp.inference import Kind, OnnxNetwork, write_atomically
 from heapgrasp.inference.errors import WeightsError
-from heapgrasp.nets.device import resolve_device
-from heapgrasp.nets.training import (
+from heapgrasp.training.common import (
     TrainSetupError,
     card_header,
     check_lr,
@@ -51,6 +50,7 @@ from heapgrasp.nets.training import (
     start_run,
     write_metrics,
 )
+from heapgrasp.training.device import resolve_device
 
 __all__ = [
     "CLASSES",
@@ -698,7 +698,7 @@ def export_segmentation(
             "exporting the segmentation network needs onnx and onnxscript: "
             "pip install 'heapgrasp[train]'"
         ) from exc
-    from heapgrasp.nets.export import export_sealed
+    from heapgrasp.training.export import export_sealed
 
     hparams = {
         **net.hparams(),

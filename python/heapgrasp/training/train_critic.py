@@ -1,6 +1,9 @@
-"""Fitting and evaluating the grasp critic on data of
-:mod:`heapgrasp.data.critic`.
+"""Fitting, saving and evaluating the grasp critic (:mod:`heapgrasp.planning.critic`
+runs it) on data of :mod:`heapgrasp.data.critic`.
 
+:func:`fit_critic` fits a model on feature rows and labels (``linear``: PCA of the crops
+and :func:`fit_logistic`; ``cnn``: :func:`heapgrasp.training.critic_net.fit_conv`);
+:func:`save_critic` writes it as an ONNX file with its provenance.
 :func:`design_matrix` turns scene files into feature rows (each candidate twice, once
 per finger assignment: the hand is symmetric) and labels (1 = the object was held).
 :func:`cross_validate` fits on all scenes but one fold and predicts the fold, ``folds``
@@ -9,20 +12,35 @@ the ROC curve of the critic and of the planner's own score, and what the critic 
 the grasps a phase chooses from (:func:`phase_picks`): the planner's candidates at its
 threshold ε against those the critic keeps
 (:meth:`~heapgrasp.planning.critic.GraspCritic.rescore`).
+
+Needs numpy and the ``onnx`` package (``heapgrasp[train]``); the ``cnn`` model PyTorch
+too, imported only when one is fitted.
 """
 
 from __future__ import annotations
 
+import datetime as _dt
 import json
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from heapgrasp.geometry.grid import GridFrame
-from heapgrasp.planning.critic import GraspCritic, candidate_features, flip_pose
+from heapgrasp.inference import OnnxNetwork, write_atomically
+from heapgrasp.planning.critic import (
+    MODELS,
+    N_SCALARS,
+    GraspCritic,
+    _unit,
+    candidate_features,
+    flip_pose,
+)
+from heapgrasp.training.critic_net import critic_onnx, fit_conv, with_metadata
 
 __all__ = [
     "Design",
@@ -30,11 +48,100 @@ __all__ = [
     "cross_validate",
     "design_matrix",
     "evaluation_report",
+    "fit_critic",
+    "fit_logistic",
     "hull_kind",
     "phase_picks",
+    "save_critic",
 ]
 
 F64 = npt.NDArray[np.float64]
+
+
+def fit_logistic(x: F64, y: npt.ArrayLike, l2: float = 1.0, iterations: int = 50) -> F64:
+    """Logistic regression ``P(y=1) = σ(w·[x, 1])`` by Newton's method, L2 penalty
+    ``l2`` on ``w`` (not on the bias). Returns ``w`` with the bias last."""
+    t = np.asarray(y, dtype=np.float64)
+    if x.ndim != 2 or len(x) != len(t) or len(t) == 0:
+        raise ValueError(f"x must be (n, d) with n = len(y) > 0, got {x.shape} and {t.shape}")
+    xb = np.hstack([x, np.ones((len(x), 1))])
+    w = np.zeros(xb.shape[1])
+    reg = np.full(xb.shape[1], l2)
+    reg[-1] = 0.0
+    for _ in range(iterations):
+        prob = 1.0 / (1.0 + np.exp(-np.clip(xb @ w, -30, 30)))
+        grad = xb.T @ (prob - t) + reg * w
+        hess = (xb * (prob * (1 - prob))[:, None]).T @ xb + np.diag(reg) + 1e-9 * np.eye(len(w))
+        step = np.linalg.solve(hess, grad)
+        w -= step
+        if np.max(np.abs(step)) < 1e-8:
+            break
+    return w
+
+
+def fit_critic(
+    features: F64,
+    labels: npt.ArrayLike,
+    *,
+    components: int = 32,
+    l2: float = 1.0,
+    threshold: float = 0.7,
+    candidate_epsilon: float = 0.2,
+    model: str = "linear",
+    epochs: int = 30,
+    weight_decay: float = 1e-2,
+    seed: int = 0,
+) -> GraspCritic:
+    """A critic fitted on rows of :func:`~heapgrasp.planning.critic.candidate_features`
+    and 0/1 labels: ``linear`` uses ``components`` and ``l2``; ``cnn`` uses ``epochs``,
+    ``weight_decay`` and ``seed`` (:func:`~heapgrasp.training.critic_net.fit_conv`,
+    needs PyTorch). Building the model's graph needs the ``onnx`` package
+    (``heapgrasp[train]``)."""
+    if model not in MODELS:
+        raise ValueError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
+    f = np.asarray(features, dtype=np.float64)
+    mean = f.mean(axis=0)
+    scale = f.std(axis=0)
+    scale[scale < 1e-6] = 1.0
+    z = (f - mean) / scale
+    n_crop = f.shape[1] - N_SCALARS
+    hparams = {
+        "threshold": _unit("threshold", threshold),
+        "candidate_epsilon": _unit("candidate_epsilon", candidate_epsilon),
+    }
+    if model == "cnn":
+        net = fit_conv(z, labels, epochs=epochs, weight_decay=weight_decay, seed=seed)
+        data = critic_onnx(mean, scale, net=net, hparams=hparams, provenance={})
+    else:
+        _, _, vt = np.linalg.svd(z[:, :n_crop], full_matrices=False)
+        comps = vt[: min(components, len(vt))]
+        design = np.hstack([z[:, :n_crop] @ comps.T, z[:, n_crop:]])
+        w = fit_logistic(design, labels, l2=l2)
+        data = critic_onnx(mean, scale, components=comps, weights=w, hparams=hparams, provenance={})
+    network = OnnxNetwork.from_bytes(data, kind="grasp-critic", name=f"<fitted {model} critic>")
+    return GraspCritic(network, threshold, candidate_epsilon)
+
+
+def save_critic(
+    critic: GraspCritic,
+    path: str | os.PathLike[str],
+    *,
+    command: str,
+    metadata: dict[str, Any] | None = None,
+) -> Path:
+    """Writes ``critic`` as an ONNX file (atomically), its provenance the critic's
+    :attr:`~heapgrasp.planning.critic.GraspCritic.metadata` updated with ``metadata``,
+    ``command`` and the time. Needs the ``onnx`` package (``heapgrasp[train]``)."""
+    meta = dict(critic.metadata)
+    meta.update(metadata or {})
+    meta.update(
+        command=command,
+        created=_dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+    )
+    hparams = dict(critic.network.hparams)
+    hparams.update(threshold=critic.threshold, candidate_epsilon=critic.candidate_epsilon)
+    data = with_metadata(critic.network.model_bytes, hparams, meta)
+    return write_atomically(data, path)
 
 
 @dataclass(frozen=True)
@@ -174,7 +281,7 @@ def cross_validate(
     **model: Any,
 ) -> dict[str, Any]:
     """Grouped ``folds``-fold cross-validation (module docstring); ``model`` are the
-    keyword arguments of :meth:`GraspCritic.fit` (``model``, ``components``, ``l2``,
+    keyword arguments of :func:`fit_critic` (``model``, ``components``, ``l2``,
     ``epochs``, ...)."""
     if folds < 2:
         raise ValueError(f"folds must be >= 2, got {folds}")
@@ -183,7 +290,7 @@ def cross_validate(
         test = design.scene % folds == f
         if test.all() or not test.any():
             raise ValueError(f"too few scenes ({design.scene.max() + 1}) for {folds} folds")
-        critic = GraspCritic.fit(design.features[~test], design.labels[~test], **model)
+        critic = fit_critic(design.features[~test], design.labels[~test], **model)
         prob[test] = critic.probability(design.features[test])
     return evaluation_report(design, prob, thresholds, epsilon)
 

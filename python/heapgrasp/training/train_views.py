@@ -4,15 +4,15 @@ and matplotlib: ``pip install 'heapgrasp[train]'``.
 
 * :func:`train` — Adam, a cosine learning rate per step, MSE (default) or BCE on the
   ``U × V`` map, each batch turned by one of the 8 exact symmetries of
-  :mod:`heapgrasp.nets.view_data` (quarter turns about z shift ``u`` by ``U/4``, the
+  :mod:`heapgrasp.training.view_data` (quarter turns about z shift ``u`` by ``U/4``, the
   mirror ``y → −y`` sends ``u`` to ``−u``); a checkpoint every epoch (safetensors:
   weights, optimizer state, RNG; JSON in its header: settings, history), ``resume=True``
   continues it exactly; ``OUT/metrics.csv`` and ``OUT/metrics.png`` per epoch; the
   weights of the best epoch by validation median Spearman ρ kept in
   ``OUT/best.safetensors``.
 * :func:`predict`, :func:`ranking_metrics`, :func:`evaluate` — loss, per-sample Spearman ρ
-  and top-1 regret of a network on a dataset. Eq. 18 agreement (which needs the
-  planning layer) is :func:`heapgrasp.planning.view_eval.evaluate`.
+  and top-1 regret of a network on a dataset. Eq. 18 agreement (with the planning
+  layer's eq. 18) is :func:`heapgrasp.training.view_eval.evaluate`.
 * :func:`save_view_network` / :func:`load_view_network` — the trained network as
   ``NAME.safetensors`` (the state dict; the architecture in its header) plus a model
   card ``NAME.json``.
@@ -38,8 +38,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
-from heapgrasp.nets.models import ViewNet
-from heapgrasp.nets.training import (
+from heapgrasp.training.common import (
     CHECKPOINT,
     Panel,
     RunResult,
@@ -54,7 +53,8 @@ from heapgrasp.nets.training import (
     save_network,
     start_run,
 )
-from heapgrasp.nets.view_data import (
+from heapgrasp.training.models import ViewNet
+from heapgrasp.training.view_data import (
     SYMMETRIES,
     ViewDataError,
     ViewDataset,
@@ -316,7 +316,7 @@ def train(
         Output directory: ``checkpoint.safetensors``, ``best.safetensors``,
         ``metrics.csv``, ``metrics.png``.
     device : str
-        A torch device name (``heapgrasp.nets.resolve_device`` checks one first).
+        A torch device name (``heapgrasp.training.resolve_device`` checks one first).
     resume : bool
         Continue from ``out``'s checkpoint (TrainSetupError when there is none, or when it
         was made with other settings or data); without it an existing checkpoint is

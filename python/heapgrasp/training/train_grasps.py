@@ -3,10 +3,10 @@ grasp datasets of ``heapgrasp grasps data``. Needs PyTorch, safetensors and matp
 ``pip install 'heapgrasp[train]'``.
 
 **Batches.** A step reads ``batch_size`` scenes (one forward pass each) and takes the
-loss at every labelled voxel of them (:func:`heapgrasp.nets.grasp_data.make_batch`);
+loss at every labelled voxel of them (:func:`heapgrasp.training.grasp_data.make_batch`);
 VGN runs one forward pass per labelled grasp. Each scene is turned by a random number of
 quarter turns about the vertical axis and shifted by up to ``max_shift`` voxels along x
-and y (exact on the grid, :func:`~heapgrasp.nets.grasp_data.augment_scene`).
+and y (exact on the grid, :func:`~heapgrasp.training.grasp_data.augment_scene`).
 
 **Losses** (VGN's, :func:`grasp_losses`), per labelled grasp with label ``y``::
 
@@ -30,7 +30,7 @@ predicted and the nearer labelled orientation) on the positives. The best epoch 
 one with the lowest validation loss (all three heads; the planner needs all three).
 
 Adam at a constant learning rate (VGN: 3e-4); a checkpoint every epoch with an exact
-resume (:mod:`heapgrasp.nets.training`); ``OUT/metrics.csv`` and ``OUT/metrics.png``.
+resume (:mod:`heapgrasp.training.common`); ``OUT/metrics.csv`` and ``OUT/metrics.png``.
 :func:`write_outputs` writes the trained network (safetensors and its model card), its
 ONNX file for :class:`~heapgrasp.planning.grasp_network.NetworkGraspPlanner` and the
 validation and test metrics.
@@ -53,17 +53,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
-from heapgrasp.nets.grasp_data import (
-    INPUT_KINDS,
-    GraspBatch,
-    GraspDataError,
-    GraspDataset,
-    check_compatible,
-    draw_augments,
-    make_batch,
-)
-from heapgrasp.nets.models import GraspNet
-from heapgrasp.nets.training import (
+from heapgrasp.training.common import (
     Panel,
     RunResult,
     TrainSetupError,
@@ -81,6 +71,16 @@ from heapgrasp.nets.training import (
     start_run,
     write_metrics,
 )
+from heapgrasp.training.grasp_data import (
+    INPUT_KINDS,
+    GraspBatch,
+    GraspDataError,
+    GraspDataset,
+    check_compatible,
+    draw_augments,
+    make_batch,
+)
+from heapgrasp.training.models import GraspNet
 
 __all__ = [
     "NETWORK_FORMAT",
@@ -489,7 +489,7 @@ def train(
         Output directory: ``checkpoint.safetensors``, ``best.safetensors``,
         ``metrics.csv``, ``metrics.png``.
     device : str
-        A torch device name (``heapgrasp.nets.resolve_device`` checks one first).
+        A torch device name (``heapgrasp.training.resolve_device`` checks one first).
     resume : bool
         Continue from ``out``'s checkpoint (TrainSetupError when there is none, or when
         it was made with other settings or data); without it an existing checkpoint is
@@ -667,7 +667,7 @@ def load_grasp_network(path: str | os.PathLike[str], device: str = "cpu") -> Gra
 
 
 def _machine(device: str) -> dict[str, Any]:
-    from heapgrasp.nets.export import describe_machine
+    from heapgrasp.training.export import describe_machine
 
     return {
         "description": describe_machine(),
@@ -694,10 +694,10 @@ def write_outputs(
     """The trained network's files in ``out``: ``metrics.json`` (the best epoch's
     :func:`evaluate` on the validation and, where given, the test data),
     ``grasp_network.safetensors`` and its model card ``grasp_network.json``, and
-    ``grasp_network.onnx`` (:func:`heapgrasp.nets.export.export_onnx`, kind
+    ``grasp_network.onnx`` (:func:`heapgrasp.training.export.export_onnx`, kind
     ``grasp-network``, ``input_kind`` in its hyper-parameters) for
     :class:`~heapgrasp.planning.grasp_network.NetworkGraspPlanner`. Returns the paths."""
-    from heapgrasp.nets.export import export_onnx
+    from heapgrasp.training.export import export_onnx
 
     out_dir = Path(out)
     net = result.net

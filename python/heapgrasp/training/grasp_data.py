@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from heapgrasp.nets.datasets import (
+from heapgrasp.training.datasets import (
     check_array,
     check_finite,
     first_of_same,

@@ -1,7 +1,7 @@
 """Trained networks → the ONNX files heapgrasp runs (:mod:`heapgrasp.inference`).
 
-:func:`export_onnx` writes a :class:`~heapgrasp.nets.models.ViewNet` or
-:class:`~heapgrasp.nets.models.GraspNet` with PyTorch's ONNX exporter (``torch.export``
+:func:`export_onnx` writes a :class:`~heapgrasp.training.models.ViewNet` or
+:class:`~heapgrasp.training.models.GraspNet` with PyTorch's ONNX exporter (``torch.export``
 based; needs ``onnx`` and ``onnxscript``, the ``train`` extra) and the metadata
 :class:`~heapgrasp.inference.OnnxNetwork` checks: kind, format version, hyper-parameters
 (the architecture, ``resolution``, ``in_channels``) and provenance (command, date,
@@ -38,7 +38,7 @@ from heapgrasp.inference import (
     seal,
     write_atomically,
 )
-from heapgrasp.nets.models import GraspNet, ViewNet
+from heapgrasp.training.models import GraspNet, ViewNet
 
 __all__ = ["EXPORT_ATOL", "OPSET", "describe_machine", "export_onnx", "onnx_outputs"]
 

@@ -40,7 +40,7 @@ import torch
 from torch import Tensor
 
 from heapgrasp.geometry.motion import ViewSphere
-from heapgrasp.nets.datasets import (
+from heapgrasp.training.datasets import (
     check_array,
     check_finite,
     first_of_same,

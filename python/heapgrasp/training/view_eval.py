@@ -1,5 +1,5 @@
 """How well a view network stands in for the exact eq. 14 scores: the metrics of
-:func:`heapgrasp.nets.train_views.evaluate` (loss, Spearman ρ, top-1 regret) plus how often
+:func:`heapgrasp.training.train_views.evaluate` (loss, Spearman ρ, top-1 regret) plus how often
 eq. 18's choice on the network's scores is the oracle's (HEAPGrasp §IV-B).
 
 Eq. 18 picks ``argmax s + γ2 h`` with ``h`` the progress towards the target grasp (eq. 19);
@@ -9,25 +9,22 @@ choose the same pose (the ``θ = 0`` candidates are one pose for every ``u``). A
 ``γ2 = 0`` that is the top-1 agreement of the maps; at ``γ2 = 0.35`` (Table I) the samples
 without a target use eq. 18 with ``s`` alone, as the loop does before its first grasp.
 
-Lives in the planning layer because eq. 18 does; PyTorch is imported when
-:func:`evaluate` runs, not with this module.
+Evaluates a network in training (needs PyTorch); eq. 18 itself is the planning layer's
+(:mod:`heapgrasp.planning.selection`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
+import torch
 
 from heapgrasp.planning.selection import select_next_waypoint
-
-if TYPE_CHECKING:
-    import torch
-
-    from heapgrasp.nets.models import ViewNet
-    from heapgrasp.nets.view_data import ViewDataset
+from heapgrasp.training.models import ViewNet
+from heapgrasp.training.train_views import loss_fn, predict, ranking_metrics
+from heapgrasp.training.view_data import ViewDataset
 
 __all__ = ["GAMMA2", "evaluate", "selection_agreement"]
 
@@ -94,14 +91,10 @@ def evaluate(
 ) -> dict[str, float]:
     """The network's metrics on ``data`` (a validation or test dataset): ``loss``,
     ``spearman_median``, ``spearman_mean``, ``constant_labels``, ``regret_mean``,
-    ``regret_median``, ``top1_exact`` (:func:`heapgrasp.nets.train_views.ranking_metrics`),
+    ``regret_median``, ``top1_exact`` (:func:`heapgrasp.training.train_views.ranking_metrics`),
     ``eq18_match_g<γ2>`` for each of ``gammas`` and ``with_target`` (samples with a
     target grasp, which only the γ2 > 0 comparisons use), on the samples the network can
     score (a 1-channel network: only those whose eq. 14 counts the whole grid)."""
-    import torch
-
-    from heapgrasp.nets.train_views import loss_fn, predict, ranking_metrics
-
     data = data.for_network(net.in_channels)
 
     pred = predict(net, data, batch_size=batch_size, device=device)

@@ -48,7 +48,7 @@ from torch import nn
 
 import heapgrasp
 from heapgrasp.inference.errors import WeightsError, check_archive
-from heapgrasp.nets.models import GraspNet, ViewNet
+from heapgrasp.training.models import GraspNet, ViewNet
 
 __all__ = [
     "FORMAT",
@@ -207,7 +207,7 @@ def _read(path: str | os.PathLike[str], kind: Kind | None) -> dict[str, Any]:
     if not p.exists():
         raise FileNotFoundError(
             f"{what} weights file not found: {p}. Weights files are written by the network "
-            f"training command (heapgrasp.nets.weights.save_weights); none ship with this "
+            f"training command (heapgrasp.training.weights.save_weights); none ship with this "
             f"version"
         )
     if not p.is_file():
