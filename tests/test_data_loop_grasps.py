@@ -154,6 +154,22 @@ def test_bad_settings_are_named(tmp_path: Path) -> None:
             LoopGraspDataConfig(**kwargs)
 
 
+def test_a_method_without_a_shipped_network_fails_before_any_shard(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """No network ships for the TSDF: one clear error up front, nothing written (it was
+    one failure per shard, after the pool had started)."""
+    import heapgrasp.inference
+
+    monkeypatch.setattr(heapgrasp.inference, "shipped_grasp_network", lambda kind: None)
+    with pytest.raises(ValueError, match="no grasp network for tsdf grids ships"):
+        LoopGraspDataConfig(method="vgn")
+    out = tmp_path / "d"
+    assert main(["grasps", "loop-data", str(out), "--method", "vgn", "--quiet"]) == 2
+    assert "pass one (heapgrasp grasps train --input tsdf" in capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "d"
     args = ["grasps", "loop-data", str(out), "--scenes", "1", "--objects", "2", "--points", "20"]

@@ -21,7 +21,7 @@ Every scene is a pile or packed scene of 5 objects run through the clutter-remov
 protocol, the grasp network executing its own best grasps (``--driver network``; or the
 method's default planner); every phase gives the grid the network read, its top
 candidates labelled on the true meshes (whatever the label) and VGN's balanced grasps on
-that grid, in ``grasps data``' format (:mod:`heapgrasp.data.loop_grasps`). The summary
+that grid, in the format of ``grasps data`` (:mod:`heapgrasp.data.loop_grasps`). The summary
 prints the network's precision@k on those phases.
 
 ``heapgrasp grasps train``: the grasp network trained on those datasets::

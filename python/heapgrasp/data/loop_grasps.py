@@ -132,6 +132,14 @@ class LoopGraspDataConfig(ShardedConfig):
             raise ValueError(f"driver must be one of {', '.join(DRIVERS)}, got {self.driver!r}")
         if self.weights is not None and not Path(self.weights).is_file():
             raise ValueError(f"weights: {self.weights} is not a file")
+        if self.weights is None:
+            from heapgrasp.inference import shipped_grasp_network
+
+            if shipped_grasp_network(self.input) is None:  # one error, not one per shard
+                raise ValueError(
+                    f"weights: no grasp network for {self.input} grids ships with this "
+                    f"version; pass one (heapgrasp grasps train --input {self.input} writes it)"
+                )
         if self.gripper != "panda":
             raise ValueError(
                 f"gripper: the loop's simulated hand is the Panda; got {self.gripper!r}"
