@@ -152,6 +152,31 @@ def test_bad_objects_are_reported_and_the_others_run(
     assert grasp is None or grasp["contacts"][0][2] < 0.05
 
 
+def test_a_ycb_download_runs_the_protocol_objects_asked_for_as_they_rest(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from heapgrasp.viewsphere.objects import stand_in
+
+    ((v, f),) = stand_in("003_cracker_box")
+    y_up = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    folder = tmp_path / "ycb"
+    for name, mesh in (
+        ("003_cracker_box", "google_16k/textured.obj"),
+        ("004_sugar_box", "textured.obj"),
+    ):
+        (folder / name / mesh).parent.mkdir(parents=True)
+        trimesh.Trimesh(v @ y_up, f).export(str(folder / name / mesh))
+    args = ["--object-dir", str(folder), "--objects", "003_cracker_box,025_mug"]
+    assert _run(tmp_path / "run", *args, "--poses", "1", "--no-execute", "--policies", "brick") == 1
+    results = json.loads((tmp_path / "run" / "results.json").read_text())
+    assert list(results["policies"]["brick"]["objects"]) == ["003_cracker_box"]
+    placed = results["placements"]["003_cracker_box"]
+    assert placed["protocol"] == "003_cracker_box" and placed["exact"]
+    assert placed["placement"].startswith("its stable pose 0.210 m tall")
+    assert results["errors"] == {"025_mug": f"no object of {folder} is 025_mug"}
+    assert "004_sugar_box" not in results["placements"]
+
+
 @pytest.mark.parametrize(
     "bad, message",
     [

@@ -174,7 +174,8 @@ def test_the_run_library_holds_the_users_objects_only_in_the_evaluated_split(
         library = object_library(config, on_skip=skipped.append)
         assert [m.name for m in library] == ["user/box", "user/ushape"]
         assert [m.split for m in library] == [split, split]
-    assert skipped == [f"skipped {folder / 'notes'}: no model.urdf"] * 2
+    assert len(skipped) == 2
+    assert all(s.startswith(f"skipped {folder / 'notes'}: no model.urdf, ") for s in skipped)
     with pytest.warns(UserWarning, match="notes: no model.urdf"):
         user_models(folder, cache)  # the library's default: a warning
 
@@ -341,3 +342,53 @@ def test_a_decomposition_that_runs_too_long_is_stopped(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"ran past 0.01 s and was stopped"):
         _vhacd(vertices, faces, tmp_path, timeout=0.01)
     assert len(_vhacd(vertices, faces, tmp_path)) > 1  # unbounded enough: the pieces
+
+
+def test_the_common_download_layouts_load_without_a_urdf(tmp_path: Path, cache: Path) -> None:
+    folder = tmp_path / "ycb"
+    layouts = {
+        "003_cracker_box": "google_16k/textured.obj",  # YCB's download
+        "004_sugar_box": "poisson/nontextured.ply",
+        "scanned_shoe": "meshes/model.obj",  # Google Scanned Objects
+        "005_tomato_soup_can": "textured_simple.obj",  # iGibson's copy
+    }
+    for name, path in layouts.items():
+        (folder / name / path).parent.mkdir(parents=True)
+        trimesh.creation.box(extents=(0.05, 0.06, 0.08)).export(str(folder / name / path))
+    # Both scans present: the finer one is taken.
+    trimesh.creation.box(extents=(0.02, 0.02, 0.02)).export(
+        str(folder / "003_cracker_box" / "google_16k" / "nontextured.ply")
+    )
+    (folder / "003_cracker_box" / "tsdf").mkdir()
+    trimesh.creation.box(extents=(0.01, 0.01, 0.01)).export(
+        str(folder / "003_cracker_box" / "tsdf" / "textured.obj")
+    )
+    (folder / "notes").mkdir()
+    (folder / "notes" / "readme.txt").write_text("not an object")
+    skipped: list[str] = []
+    models = user_models(folder, cache, on_skip=skipped.append)
+    assert [m.name for m in models] == [f"user/{n}" for n in sorted(layouts)]
+    for m in models:
+        v, _ = load_mesh(m.visual_mesh)
+        np.testing.assert_allclose(sorted(np.ptp(v, axis=0)), [0.05, 0.06, 0.08], atol=1e-6)
+    assert len(skipped) == 1 and "notes" in skipped[0]
+    assert "google_16k/textured.obj" in skipped[0] and "meshes/model.obj" in skipped[0]
+
+
+def test_a_folder_with_several_urdfs_and_no_known_mesh_asks_which(
+    tmp_path: Path, cache: Path
+) -> None:
+    folder = tmp_path / "objs"
+    sub = folder / "019_pitcher_base"
+    sub.mkdir(parents=True)
+    trimesh.creation.box(extents=(0.05, 0.06, 0.08)).export(str(sub / "base.stl"))
+    for urdf in ("base.urdf", "rescale_base.urdf"):
+        (sub / urdf).write_text(_urdf("b", '<geometry><mesh filename="base.stl"/></geometry>'))
+    skipped: list[str] = []
+    with pytest.raises(ValueError, match="no objects"):
+        user_models(folder, cache, on_skip=skipped.append)
+    assert "base.urdf, rescale_base.urdf" in skipped[0] and "which one?" in skipped[0]
+    # With the download's mesh beside them, the mesh is the object.
+    trimesh.creation.box(extents=(0.05, 0.06, 0.08)).export(str(sub / "nontextured.ply"))
+    (model,) = user_models(folder, cache)
+    assert model.name == "user/019_pitcher_base"

@@ -73,3 +73,101 @@ def test_benchmark_objects_turn_about_the_vertical_and_check_their_size():
     box.check_size(0.15, 0.30)
     with pytest.raises(ValueError, match=r"'003_cracker_box'.*larger than the workspace"):
         box.check_size(0.05, 0.30)
+
+
+@pytest.mark.parametrize(
+    "stem, protocol",
+    [
+        ("003_cracker_box", "003_cracker_box"),  # YCB's id
+        ("YcbCrackerBox", "003_cracker_box"),  # pybullet-object-models
+        ("ycb_003_cracker_box", "003_cracker_box"),
+        ("cracker_box", "003_cracker_box"),
+        ("YcbPowerDrill", "035_power_drill"),
+        ("072-a_toy_airplane", "072-a_toy_airplane"),
+        ("toy_airplane", "072-a_toy_airplane"),
+        ("YcbBanana", None),
+        ("004_sugar_box", None),
+        ("box", None),
+    ],
+)
+def test_protocol_objects_are_known_by_any_common_spelling(stem, protocol):
+    from heapgrasp.viewsphere.objects import protocol_name
+
+    assert protocol_name(stem) == protocol
+
+
+def _one_mesh(name):
+    parts = stand_in(name)
+    offsets = np.cumsum([0] + [len(v) for v, _ in parts[:-1]])
+    return (
+        np.vstack([v for v, _ in parts]),
+        np.vstack([f + o for (_, f), o in zip(parts, offsets, strict=True)]),
+    )
+
+
+def _up(placed, frame):
+    """The angle (degrees) between the placed mesh's up and the stand-in's up."""
+    up = frame.T @ np.array([0.0, 0.0, 1.0])
+    return np.degrees(np.arccos(min(1.0, abs(float(placed.rotation[2] @ up)))))
+
+
+Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # z up → y up
+
+
+@pytest.mark.parametrize("name", ["003_cracker_box", "008_pudding_box", "025_mug", "024_bowl"])
+def test_a_protocol_object_rests_as_the_protocol_says_whatever_its_frame(name):
+    from heapgrasp.viewsphere.objects import _rotation, placement
+
+    v, f = _one_mesh(name)  # at rest, as the protocol puts the object
+    rest = REST_POSES[name]
+    ycb = _rotation(rest.roll, rest.pitch)  # YCB's frame: the protocol's roll and pitch rest it
+    placed = placement(v @ ycb, f, name)
+    assert placed.exact and "the protocol's roll and pitch" in placed.note
+    assert _up(placed, ycb) < 1.0
+    rng = np.random.default_rng(7)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    for frame in (Y_UP, q * np.sign(np.linalg.det(q))):  # Y up, or any frame at all
+        placed = placement(v @ frame, f, name)
+        assert placed.exact, placed.note
+        assert _up(placed, frame) < 1.0, placed.note
+        turned = (v @ frame) @ placed.rotation.T
+        assert np.ptp(turned[:, 2]) == pytest.approx(np.ptp(v[:, 2]), abs=1e-6)
+
+
+def test_a_mesh_that_cannot_rest_as_its_namesake_is_said_so():
+    from heapgrasp.viewsphere.objects import placement
+
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.04)
+    placed = placement(np.asarray(ball.vertices), np.asarray(ball.faces), "003_cracker_box")
+    assert not placed.exact
+    assert "cannot rest it as 003_cracker_box rests (0.210 m tall)" in placed.note
+    box = trimesh.creation.box(extents=(0.03, 0.05, 0.06))
+    placed = placement(np.asarray(box.vertices), np.asarray(box.faces), None)
+    assert not placed.exact and placed.note == "its most stable pose"
+    assert np.ptp(np.asarray(box.vertices) @ placed.rotation[2]) == pytest.approx(0.03)
+
+
+def test_user_objects_in_the_ycb_layouts_rest_as_the_protocol_says(tmp_path):
+    from heapgrasp.viewsphere.objects import user_objects
+
+    folder = tmp_path / "ycb"
+    v, f = _one_mesh("003_cracker_box")
+    box = trimesh.Trimesh(v @ Y_UP, f)  # a Y-up export of the cracker box
+    (folder / "003_cracker_box" / "google_16k").mkdir(parents=True)
+    box.export(str(folder / "003_cracker_box" / "google_16k" / "textured.obj"))
+    (folder / "YcbCrackerBox").mkdir()
+    box.export(str(folder / "YcbCrackerBox" / "textured.obj"))
+    (folder / "YcbCrackerBox" / "model.urdf").write_text(
+        '<robot name="b"><link name="base"><visual><geometry><mesh filename="textured.obj"/>'
+        "</geometry></visual></link></robot>"
+    )
+    bad: list[tuple[str, str]] = []
+    objects = user_objects(folder, tmp_path / "cache", on_bad=lambda *a: bad.append(a))
+    assert not bad
+    assert [o.name for o in objects] == ["003_cracker_box", "YcbCrackerBox"]
+    for obj in objects:
+        assert obj.protocol == "003_cracker_box" and obj.exact
+        assert obj.yaw_range == REST_POSES["003_cracker_box"].yaw_range
+        lo, hi = _extents(obj.meshes)
+        np.testing.assert_allclose(hi[2] - lo[2], 0.21, atol=1e-6)
+        assert "another" not in obj.placement or "frame" in obj.placement

@@ -76,9 +76,11 @@ def comma_choices(what: str, allowed: tuple[str, ...]) -> Callable[[str], tuple[
 
 #: ``--object-dir``'s help (``heapgrasp run``, ``heapgrasp bench sim``).
 OBJECT_DIR_HELP = (
-    "your own objects: each subfolder of DIR is a PyBullet object (model.urdf with its "
-    "visual and collision meshes, in metres, e.g. YCB or Google Scanned Objects: "
-    "DIR/003_cracker_box/model.urdf), or DIR holds mesh/URDF files; a concave collision "
+    "your own objects: each subfolder of DIR is an object, a PyBullet object (model.urdf "
+    "with its visual and collision meshes, in metres, e.g. pybullet-object-models' "
+    "ycb_objects/YcbCrackerBox) or a download's mesh (YCB's "
+    "003_cracker_box/google_16k/textured.obj, Google Scanned Objects' meshes/model.obj), "
+    "or DIR holds mesh/URDF files; a concave collision "
     "mesh collides as its convex decomposition (cached), and the optical categories are "
     "drawn per scene group as for our objects. Scenes are drawn from these objects only, "
     "all of them treated as the evaluated split (object_set and the train/test split do "

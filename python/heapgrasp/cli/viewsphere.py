@@ -116,27 +116,34 @@ def add_bench(sub: SubParsers, name: str = "bench") -> argparse.ArgumentParser:
         default=POLICIES,
         help=f"comma-separated policies among {', '.join(POLICIES)}, or all (the default)",
     )
+    some_objects = comma_choices("object", (*TEST_OBJECTS, *TRAIN_OBJECTS))
     p.add_argument(
         "--objects",
-        type=comma_choices("object", (*TEST_OBJECTS, *TRAIN_OBJECTS)),
-        default=tuple(TEST_OBJECTS),
+        type=lambda text: (
+            tuple(TEST_OBJECTS) if text.strip().lower() == "test" else some_objects(text)
+        ),
+        default=None,
         metavar="NAMES",
-        help="comma-separated stand-in objects (default: the 12 test objects: "
+        help="comma-separated objects, or test for the 12 test objects (the default: "
         + ", ".join(TEST_OBJECTS)
         + "; training shapes: "
         + ", ".join(TRAIN_OBJECTS)
-        + ")",
+        + "). With --object-dir, the objects of DIR that are these protocol objects "
+        "(default: every object of DIR)",
     )
     p.add_argument(
         "--object-dir",
         metavar="DIR",
         type=lambda s: str(Path(s).expanduser().absolute()),
-        help="your objects instead of the stand-ins: each subfolder of DIR holds a "
-        "PyBullet object (model.urdf with its visual and collision meshes, in metres), "
-        "or DIR holds mesh files. An object named like a protocol object (e.g. "
-        "003_cracker_box) takes the protocol's resting pose and yaw range; any other "
-        "rests in its most stable pose, with yaws over 0-359 degrees. An object that "
-        "cannot be used is reported and skipped",
+        help="your objects instead of the stand-ins: each subfolder of DIR is an object "
+        "(its model.urdf, as in pybullet-object-models' ycb_objects/YcbCrackerBox, or "
+        "a download's mesh: YCB's 003_cracker_box/google_16k/textured.obj, Google "
+        "Scanned Objects' meshes/model.obj), or DIR holds mesh files, in metres. An "
+        "object named like a protocol object (003_cracker_box, YcbCrackerBox, "
+        "cracker_box) rests as the protocol says whatever its mesh's frame (checked "
+        "against its stable poses; a warning where it cannot) and takes its yaw range; "
+        "any other rests in its most stable pose, with yaws over 0-359 degrees. An "
+        "object that cannot be used is reported and skipped",
     )
     p.add_argument(
         "--poses",

@@ -31,8 +31,9 @@ Sources
       an 8 cm opening; the same seed gives byte-identical files
       (:mod:`heapgrasp.sim.procedural`).
     * ``user``: a directory of object folders (``NAME/model.urdf`` beside its meshes, the
-      YCB / Google Scanned Objects layout for PyBullet) or of ``*.obj``, ``*.stl``,
-      ``*.ply`` and ``*.urdf`` files (:func:`user_models`).
+      YCB / Google Scanned Objects layout for PyBullet, or the downloads' own layouts such
+      as ``NAME/google_16k/textured.obj``) or of ``*.obj``, ``*.stl``, ``*.ply`` and
+      ``*.urdf`` files (:func:`user_models`).
 
 Train/test splits are a stable hash of the object name
 (:func:`~heapgrasp.sim.object_model.split_of`). Optical categories (transparent, specular,
@@ -64,6 +65,7 @@ from heapgrasp.sim.procedural import generate_procedural
 from heapgrasp.sim.urdf import MeshRef, UrdfLink, model_from_link, model_from_urdf, parse_urdf
 
 __all__ = [
+    "FOLDER_MESHES",
     "OBJECT_URDF",
     "ObjectLibrary",
     "pybullet_data_models",
@@ -177,6 +179,28 @@ def pybullet_data_models(
 
 # --------------------------------------------------------------------------- user
 OBJECT_URDF: str = "model.urdf"
+
+#: Where an object folder without a URDF keeps its mesh, in order of preference: the
+#: YCB download's scans (``google_16k``, then ``google_64k``, ``poisson``, ``tsdf``),
+#: Google Scanned Objects' ``meshes/model.obj``, and the flat folders of the simulators'
+#: copies (iGibson's ``textured_simple.obj``, ManiSkill's and others' ``textured.obj``).
+FOLDER_MESHES: tuple[str, ...] = (
+    "google_16k/textured.obj",
+    "google_16k/nontextured.ply",
+    "google_16k/nontextured.stl",
+    "google_64k/textured.obj",
+    "google_64k/nontextured.ply",
+    "poisson/textured.obj",
+    "poisson/nontextured.ply",
+    "tsdf/textured.obj",
+    "tsdf/nontextured.ply",
+    "meshes/model.obj",
+    "textured_simple.obj",
+    "textured.obj",
+    "nontextured.ply",
+    "nontextured.stl",
+    "model.obj",
+)
 """The URDF of an object folder of a user directory (YCB's and Google Scanned Objects'
 PyBullet layout: ``DIR/003_cracker_box/model.urdf`` beside its meshes)."""
 
@@ -184,8 +208,9 @@ PyBullet layout: ``DIR/003_cracker_box/model.urdf`` beside its meshes)."""
 def _user_sources(folder: Path, on_skip: Callable[[str], None]) -> dict[str, Path]:
     """The objects of a user directory by stem: its URDF and mesh files (a mesh that a
     URDF of the directory references is not an object of its own) and its subfolders'
-    :data:`OBJECT_URDF` (or their only ``*.urdf``). Subfolders without one are skipped
-    and named to ``on_skip``, as are the directory's URDFs that cannot be parsed."""
+    :data:`OBJECT_URDF` (or their only ``*.urdf``, or else the first of
+    :data:`FOLDER_MESHES` they hold). Subfolders with none are skipped and named to
+    ``on_skip``, as are the directory's URDFs that cannot be parsed."""
     files = sorted(p for p in folder.iterdir() if p.is_file())
     urdfs = [p for p in files if p.suffix.lower() == ".urdf"]
     referenced: set[Path] = set()
@@ -203,16 +228,33 @@ def _user_sources(folder: Path, on_skip: Callable[[str], None]) -> dict[str, Pat
     for path in sorted(found):
         _add_source(sources, path.stem, path, folder)
     for sub in sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".")):
-        urdf = sub / OBJECT_URDF
-        if not urdf.is_file():
-            others = sorted(sub.glob("*.urdf"))
-            if len(others) != 1:
-                what = "" if not others else f" (and {len(others)} other URDFs: which one?)"
-                on_skip(f"skipped {sub}: no {OBJECT_URDF}{what}")
-                continue
-            urdf = others[0]
-        _add_source(sources, sub.name, urdf, folder)
+        found_in = _folder_object(sub)
+        if isinstance(found_in, str):
+            on_skip(f"skipped {sub}: {found_in}")
+            continue
+        _add_source(sources, sub.name, found_in, folder)
     return sources
+
+
+def _folder_object(sub: Path) -> Path | str:
+    """The file that makes ``sub`` an object (its :data:`OBJECT_URDF`, its only URDF, or
+    its first :data:`FOLDER_MESHES`), or why it is none."""
+    urdf = sub / OBJECT_URDF
+    if urdf.is_file():
+        return urdf
+    urdfs = sorted(sub.glob("*.urdf"))
+    if len(urdfs) == 1:
+        return urdfs[0]
+    mesh = next((sub / m for m in FOLDER_MESHES if (sub / m).is_file()), None)
+    if mesh is not None:
+        return mesh
+    if urdfs:
+        names = ", ".join(u.name for u in urdfs)
+        return f"no {OBJECT_URDF} and {len(urdfs)} other URDFs ({names}): which one?"
+    return (
+        f"no {OBJECT_URDF}, other URDF or known mesh file ({', '.join(FOLDER_MESHES[:3])}, "
+        "meshes/model.obj, textured.obj, ...)"
+    )
 
 
 def _add_source(sources: dict[str, Path], stem: str, path: Path, folder: Path) -> None:
@@ -238,9 +280,13 @@ def user_models(
 
     The directory holds objects in either (or both) of two layouts:
 
-    * a folder per object, PyBullet's (YCB, Google Scanned Objects): every subfolder
-      with a :data:`OBJECT_URDF` (or a single ``*.urdf``) is one object, named after the
-      subfolder, e.g. ``DIR/003_cracker_box/model.urdf`` is ``user/003_cracker_box``;
+    * a folder per object: every subfolder with a :data:`OBJECT_URDF` (or a single
+      ``*.urdf``: PyBullet's copies of YCB and Google Scanned Objects, e.g.
+      ``pybullet_object_models/ycb_objects/YcbCrackerBox/model.urdf``) or, without
+      one, a mesh where the common downloads keep it (:data:`FOLDER_MESHES`: YCB's
+      ``003_cracker_box/google_16k/textured.obj``, Google Scanned Objects'
+      ``meshes/model.obj``, ...) is one object named after the subfolder, e.g.
+      ``user/003_cracker_box``;
     * files: every ``*.urdf`` is one object and every ``*.obj``, ``*.stl`` and ``*.ply``
       that no URDF of the directory references is one, named after the file's stem.
 
@@ -303,7 +349,8 @@ def user_models(
     if not sources:
         raise ValueError(
             f"no objects in {folder}: expected subfolders holding a {OBJECT_URDF} (with "
-            "the meshes it names) or mesh files (.obj, .stl, .ply) and URDFs"
+            "the meshes it names) or a mesh (e.g. google_16k/textured.obj, "
+            "meshes/model.obj), or mesh files (.obj, .stl, .ply) and URDFs"
         )
     cache = Path(cache_dir)
     base = cache / "user" / _stem_hash(str(folder.resolve()))

@@ -33,7 +33,9 @@ Writes in ``--out``:
 
 * ``results.json``: ``{"policies": {POLICY: {"objects": {OBJECT: {"success_at_step":
   [7 fractions, steps 0..6], "mean_steps", "executed_success", "poses": [...]}}}}}``,
-  the settings, each object's class and the errors;
+  the settings, each object's class, how each object rests (``placements``: the
+  protocol object it stands for, how it was placed, whether that is the protocol's
+  resting pose) and the errors;
 * ``records/OBJECT.jsonl``: one line per finished pose (what a rerun resumes from);
 * ``table.md``: success at each step per object and policy, mean steps, the class;
   each policy's success over BFS's per class at steps 1 and 3 (Fig. 11), decision
@@ -111,6 +113,12 @@ def _objects(
             default_cache_dir(),
             on_bad=lambda name, problem: errors.__setitem__(name, problem),
         )
+        if args.objects is not None:
+            wanted = set(args.objects)
+            missing = wanted - {o.protocol for o in objects}
+            objects = [o for o in objects if o.protocol in wanted]
+            for name in sorted(missing):
+                errors[name] = f"no object of {args.object_dir} is {name}"
     else:
         objects = stand_ins(args.objects)
     usable = []
@@ -124,10 +132,22 @@ def _objects(
     return usable, errors
 
 
+def _placement_record(obj: Any) -> dict[str, Any]:
+    """How an object rests, for results.json: the protocol object it stands for, how it
+    was placed and whether that is the protocol's resting pose."""
+    return {"protocol": obj.protocol, "placement": obj.placement, "exact": obj.exact}
+
+
 def _settings(args: argparse.Namespace, config: ViewsphereConfig) -> dict[str, Any]:
+    from heapgrasp.viewsphere.objects import TEST_OBJECTS
+
     return {
         "policies": list(args.policies),
-        "objects": "object-dir" if args.object_dir is not None else list(args.objects),
+        "objects": (
+            "object-dir"
+            if args.object_dir is not None and args.objects is None
+            else list(args.objects if args.objects is not None else TEST_OBJECTS)
+        ),
         "object_dir": args.object_dir,
         "poses": args.poses,
         "seed": args.seed,
@@ -313,6 +333,11 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
     objects, errors = _objects(args, config)
     for name, problem in errors.items():
         print(f"heapgrasp: skipping object {name}: {problem}", file=sys.stderr)
+    placements = {obj.name: _placement_record(obj) for obj in objects}
+    if args.object_dir is not None and not args.quiet:
+        for obj in objects:
+            warn = "" if obj.exact else "warning: "
+            print(f"heapgrasp: {warn}{obj.name} rests in {obj.placement}", file=sys.stderr)
     tasks, done = _tasks(objects, args, config, out)
     records = {name: dict(poses) for name, poses in done.items()}
     total = sum(args.poses for _ in objects)
@@ -337,6 +362,7 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
         for name, msgs in pose_errors.items():
             errs[name] = f"{len(msgs)} pose(s) failed; first: {msgs[0]}"
         results = summarize(settings, good, errs)
+        results["placements"] = placements
         write_json(out / "results.json", results)
         return results
 

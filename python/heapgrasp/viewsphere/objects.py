@@ -18,6 +18,7 @@ yaws its poses take (:func:`~heapgrasp.viewsphere.protocol.protocol_yaws`);
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import trimesh
+from scipy.spatial import ConvexHull
 from trimesh import creation
 
 from heapgrasp.sim.mesh_files import load_mesh
@@ -33,10 +35,17 @@ from heapgrasp.sim.procedural import revolve as _revolve
 from heapgrasp.viewsphere.protocol import REST_POSES
 
 __all__ = [
+    "HEIGHT_TOLERANCE",
+    "OUTLINE_TOLERANCE",
+    "PREFER_GIVEN",
+    "REST_TOLERANCE_DEG",
     "TEST_OBJECTS",
     "TRAIN_OBJECTS",
     "Mesh",
+    "Placement",
     "ViewsphereObject",
+    "placement",
+    "protocol_name",
     "stand_in",
     "stand_ins",
     "user_objects",
@@ -202,13 +211,18 @@ def stand_in(name: str) -> list[Mesh]:
 @dataclass(frozen=True)
 class ViewsphereObject:
     """One benchmark object: its meshes resting on the table (``z = 0``) centred on the
-    vertical axis, the range of its yaws (89, 179 or 359 degrees) and where it came
-    from (``"stand-in"`` or the user's folder)."""
+    vertical axis, the range of its yaws (89, 179 or 359 degrees), where it came
+    from (``"stand-in"`` or the user's folder), the protocol object it is (a key of
+    :data:`REST_POSES`, None for others), how it was made to rest (``placement``) and
+    whether that is the protocol's resting pose (``exact``)."""
 
     name: str
     meshes: tuple[Mesh, ...]
     yaw_range: int
     source: str
+    protocol: str | None = None
+    placement: str = "the stand-in's resting pose"
+    exact: bool = True
 
     def posed(self, yaw: float) -> list[Mesh]:
         """The meshes turned by ``yaw`` (radians) about the vertical axis."""
@@ -254,7 +268,13 @@ def stand_ins(names: Sequence[str] | None = None) -> list[ViewsphereObject]:
         meshes = tuple(stand_in(name))
         rest = REST_POSES.get(name)
         out.append(
-            ViewsphereObject(name, meshes, 359 if rest is None else rest.yaw_range, "stand-in")
+            ViewsphereObject(
+                name,
+                meshes,
+                359 if rest is None else rest.yaw_range,
+                "stand-in",
+                protocol=name if rest is not None else None,
+            )
         )
     return out
 
@@ -268,17 +288,139 @@ def _rotation(roll: float, pitch: float) -> npt.NDArray[np.float64]:
     return out
 
 
-def _stable(
+#: How far (degrees) a pose's downward direction may be from one of the mesh's stable
+#: poses' for the object to rest in that pose.
+REST_TOLERANCE_DEG = 10.0
+#: How far an object's height at rest may be from its stand-in's (the published size in
+#: the protocol's pose) for the two poses to be the same: this fraction of the
+#: stand-in's height, and at least 5 mm (the pudding box's 89 and 110 mm sides differ
+#: by 19 %).
+HEIGHT_TOLERANCE = 0.1
+#: How far the area of an object's outline seen from above (its convex hull's) may be
+#: from its stand-in's, as a fraction: a mug upright or on its side is 82 or 80 mm tall,
+#: and its outline differs by 70 %.
+OUTLINE_TOLERANCE = 0.35
+#: The protocol's roll and pitch are kept when they fit within this much of the best
+#: stable pose's mismatch (relative height error plus relative outline error).
+PREFER_GIVEN = 0.05
+
+
+def protocol_name(stem: str) -> str | None:
+    """The protocol object (a key of :data:`REST_POSES`) that a user's object is named
+    after, however the common downloads spell it: YCB's id (``003_cracker_box``),
+    pybullet-object-models' (``YcbCrackerBox``), a ``ycb_`` prefix or the bare name
+    (``cracker_box``, ``CrackerBox``); None for any other name."""
+    key = _name_key(stem)
+    return next((name for name in REST_POSES if _name_key(name) == key), None)
+
+
+def _name_key(name: str) -> str:
+    s = re.sub(r"^ycb[_-]?", "", name.lower())
+    s = re.sub(r"^\d+(-[a-z])?[_-]", "", s)
+    return re.sub(r"[^a-z0-9]", "", s)
+
+
+@dataclass(frozen=True)
+class Placement:
+    """How a user's mesh is turned to rest on the table: the ``rotation`` (applied to
+    the mesh's vertices), what it is (``note``) and whether it is the protocol's resting
+    pose (``exact``; False when the protocol object's pose could not be found among the
+    mesh's stable poses, or the object is not a protocol object)."""
+
+    rotation: npt.NDArray[np.float64]
+    note: str
+    exact: bool
+
+
+def _stable_rotations(
     vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.int64]
-) -> npt.NDArray[np.float64]:
-    """The rotation of the mesh's most probable resting pose (trimesh's quasi-static
-    estimate on its convex hull)."""
+) -> list[npt.NDArray[np.float64]]:
+    """The rotations of the mesh's stable poses, most probable first (trimesh's
+    quasi-static estimate on its convex hull)."""
     mesh = trimesh.Trimesh(vertices, faces, process=True)
     transforms, _ = trimesh.poses.compute_stable_poses(mesh)
-    if len(transforms) == 0:
-        return np.eye(3)
-    out: npt.NDArray[np.float64] = np.asarray(transforms[0], dtype=np.float64)[:3, :3]
-    return out
+    return [np.asarray(t, dtype=np.float64)[:3, :3] for t in transforms]
+
+
+def _height(vertices: npt.NDArray[np.float64], rotation: npt.NDArray[np.float64]) -> float:
+    return float(np.ptp(vertices @ rotation[2]))
+
+
+def _outline(vertices: npt.NDArray[np.float64], rotation: npt.NDArray[np.float64]) -> float:
+    """The area (m²) of the mesh's convex outline seen from above once turned."""
+    xy = vertices @ rotation[:2].T
+    return float(ConvexHull(xy).volume)
+
+
+def _rests(rotation: npt.NDArray[np.float64], stable: Sequence[npt.NDArray[np.float64]]) -> bool:
+    """Whether turning the mesh by ``rotation`` puts it on one of its stable poses: the
+    mesh's downward direction within :data:`REST_TOLERANCE_DEG` of one of theirs."""
+    cos_tol = math.cos(math.radians(REST_TOLERANCE_DEG))
+    return any(float(rotation[2] @ r[2]) >= cos_tol for r in stable)
+
+
+def placement(
+    vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.int64], protocol: str | None
+) -> Placement:
+    """How to rest a user's mesh for the benchmark, whatever its frame convention.
+
+    A mesh that is not a protocol object (``protocol`` None) rests in its most stable
+    pose. A protocol object rests as its stand-in does (the published size in the
+    protocol's pose): of the poses it can rest in, those whose height and outline seen
+    from above match the stand-in's (:data:`HEIGHT_TOLERANCE`,
+    :data:`OUTLINE_TOLERANCE`), it takes the protocol's roll and pitch
+    (:data:`REST_POSES`, published for YCB's frames) when they are one of them and fit
+    within :data:`PREFER_GIVEN` of the best, else the best: the mesh is then in another
+    frame (Y up, BOP's, a re-oriented copy). When none matches, it rests in its most
+    stable pose and the note says it is not the protocol's.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    stable = _stable_rotations(v, np.asarray(faces, dtype=np.int64))
+    if protocol is None:
+        if not stable:
+            return Placement(np.eye(3), "as given (no stable pose found)", False)
+        return Placement(stable[0], "its most stable pose", False)
+    rest = REST_POSES[protocol]
+    ref_v = np.vstack([m[0] for m in stand_in(protocol)])
+    h_ref, a_ref = _height(ref_v, np.eye(3)), _outline(ref_v, np.eye(3))
+
+    def mismatch(r: npt.NDArray[np.float64]) -> float | None:
+        h, a = _height(v, r), _outline(v, r)
+        if abs(h - h_ref) > max(HEIGHT_TOLERANCE * h_ref, 0.005):
+            return None
+        if abs(a - a_ref) > OUTLINE_TOLERANCE * a_ref:
+            return None
+        return abs(h - h_ref) / h_ref + abs(a - a_ref) / a_ref
+
+    given = _rotation(rest.roll, rest.pitch)
+    fits = [(m, i) for i, r in enumerate(stable) if (m := mismatch(r)) is not None]
+    best = min(fits)[0] if fits else math.inf
+    m_given = mismatch(given) if not stable or _rests(given, stable) else None
+    size = f"{_height(v, given):.3f} m tall"
+    if m_given is not None and m_given <= best + PREFER_GIVEN:
+        return Placement(
+            given,
+            f"the protocol's roll and pitch for {protocol} ({size}, published {h_ref:.3f} m)",
+            True,
+        )
+    if fits:
+        chosen = stable[min(fits)[1]]
+        why = size if not stable or _rests(given, stable) else "not resting on the table"
+        return Placement(
+            chosen,
+            f"its stable pose {_height(v, chosen):.3f} m tall, as {protocol} rests "
+            f"(published {h_ref:.3f} m); the protocol's roll and pitch ({why}) do not "
+            "fit this mesh's frame",
+            True,
+        )
+    heights = sorted({round(_height(v, r), 3) for r in stable})
+    return Placement(
+        stable[0] if stable else given,
+        f"cannot rest it as {protocol} rests ({h_ref:.3f} m tall): its stable poses stand "
+        f"{', '.join(f'{h:.3f}' for h in heights[:8])} m tall; it rests in its most "
+        "stable pose instead",
+        False,
+    )
 
 
 def user_objects(
@@ -288,11 +430,13 @@ def user_objects(
     on_bad: Callable[[str, str], None],
 ) -> list[ViewsphereObject]:
     """The user's objects (:func:`heapgrasp.sim.objects.user_models`: a folder per
-    object with its ``model.urdf``, or mesh files) at rest: an object named like a
-    protocol object (e.g. ``003_cracker_box``) takes the protocol's roll, pitch and yaw
-    range (:data:`~heapgrasp.viewsphere.protocol.REST_POSES`); any other rests in
-    its most stable pose, with yaws over 0–359°. Each object that cannot be used is
-    reported to ``on_bad(name, problem)`` and left out."""
+    object with its ``model.urdf`` or a download's mesh such as
+    ``google_16k/textured.obj``, or mesh files) at rest (:func:`placement`): an object
+    named like a protocol object (:func:`protocol_name`: ``003_cracker_box``,
+    ``YcbCrackerBox``, ...) takes the protocol's resting pose and yaw range
+    (:data:`~heapgrasp.viewsphere.protocol.REST_POSES`) whatever its mesh's frame; any
+    other rests in its most stable pose, with yaws over 0–359°. Each object that cannot
+    be used is reported to ``on_bad(name, problem)`` and left out."""
     models = user_models(
         directory,
         cache_dir,
@@ -302,17 +446,31 @@ def user_objects(
     out = []
     for model in models:
         stem = model.name.split("/", 1)[-1]
+        protocol = protocol_name(stem)
         try:
             v, f = load_mesh(model.visual_mesh)
-            rest = REST_POSES.get(stem)
-            turn = _stable(v, f) if rest is None else _rotation(rest.roll, rest.pitch)
+            placed = placement(v, f, protocol)
             meshes = _at_rest(
-                [(np.asarray(v, dtype=np.float64) @ turn.T, np.asarray(f, dtype=np.int64))]
+                [
+                    (
+                        np.asarray(v, dtype=np.float64) @ placed.rotation.T,
+                        np.asarray(f, dtype=np.int64),
+                    )
+                ]
             )
         except (ValueError, OSError) as exc:
             on_bad(stem, str(exc))
             continue
+        rest = None if protocol is None else REST_POSES[protocol]
         out.append(
-            ViewsphereObject(stem, meshes, 359 if rest is None else rest.yaw_range, str(directory))
+            ViewsphereObject(
+                stem,
+                meshes,
+                359 if rest is None else rest.yaw_range,
+                str(directory),
+                protocol=protocol,
+                placement=placed.note,
+                exact=placed.exact,
+            )
         )
     return out
