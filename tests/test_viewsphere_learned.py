@@ -25,7 +25,13 @@ from heapgrasp.viewsphere.learned import (
 )
 from heapgrasp.viewsphere.policies import ViewState
 from heapgrasp.viewsphere.sphere import DIRECTIONS, DiscreteViewsphere, SpherePose
-from heapgrasp.viewsphere.training import DqnConfig, fold_linear, train_dqn, train_linear
+from heapgrasp.viewsphere.training import (
+    DqnConfig,
+    fold_linear,
+    train_dqn,
+    train_linear,
+    train_mlp,
+)
 
 SPHERE = DiscreteViewsphere()
 SCORER = ViewsphereScorer(SPHERE, VIEWSPHERE_CAMERA)
@@ -145,6 +151,7 @@ def _fake_sample(config: Any, index: int) -> dict[str, Any] | None:
         "object": 0,
         "yaw": 0.0,
         "start": (0.0, 0.5),
+        "prefix": 0,
         "k": index,
     }
 
@@ -170,11 +177,65 @@ def test_paths_datasets_train_pca_policies(tmp_path: Path, monkeypatch: pytest.M
         train_linear("svm", [train], [val], tmp_path / "x")
 
 
+def test_the_imitation_policy_learns_every_optimal_direction(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    monkeypatch.setattr(vp, "scene_sample", _fake_sample)
+    train, val = tmp_path / "train", tmp_path / "val"
+    generate(vp.ViewspherePathsConfig(scenes=120, shard_size=40), train, progress=False)
+    generate(vp.ViewspherePathsConfig(scenes=30, root_seed=1, shard_size=30), val, progress=False)
+    out = tmp_path / "imitation"
+    metrics = train_mlp([train], [val], out, hidden=(32,), seed=0)
+    assert metrics["val_top_accuracy"] > 0.9 and metrics["sklearn_agreement"] == 1.0
+    assert metrics["train_rows"] == metrics["train_samples"]  # one optimal direction each
+    policy = LearnedPolicy.from_file(out / "viewsphere_imitation.onnx", SCORER)
+    assert policy.name == "imitation"
+    # The file computes the folded perceptron: its best direction is the sample's label.
+    sample = _fake_sample(None, 2)
+    assert sample is not None
+    scores = policy.network.run(sample["state"][None])[0][0]
+    assert int(np.argmax(scores)) == sample["label"]
+    with pytest.raises(ValueError, match="hidden"):
+        train_mlp([train], [val], out, hidden=())
+
+
+def test_bfs_labels_are_every_first_move_of_a_shortest_path():
+    from heapgrasp.viewsphere.policies import breadth_first
+    from heapgrasp.viewsphere.world import ViewsphereWorld
+
+    config = vp.ViewspherePathsConfig(
+        objects=("prism_20x6x5",), labels="bfs", prefix_steps=1, procedural=1
+    )
+    assert config.object_names() == [
+        "prism_20x6x5",
+        *(f"procedural/{k}_00" for k in ("box", "cylinder", "bottle", "bowl", "cup")),
+    ]
+    meshes = vp._object_meshes("procedural/box_00")
+    v = np.vstack([m[0] for m in meshes])
+    assert v[:, 2].min() == pytest.approx(0.0) and np.abs(v[:, :2].mean(axis=0)).max() < 0.05
+    world = ViewsphereWorld(vp._object_meshes("prism_20x6x5"))
+    start = SpherePose(0.3, 1.2)
+    best = vp.optimal_first_moves(world, [start], max_steps=3, max_sets=600)
+    episode = breadth_first(world.grasp_found, sphere=world.sphere, start=start, max_steps=3)
+    if episode.found and episode.steps > 0:
+        assert best is not None and best[0] == episode.steps
+        assert episode.directions[0] in best[1]
+    else:
+        assert best is None or episode.steps == 0
+    assert vp.optimal_first_moves(world, [start], max_steps=3, max_sets=1) in (None, best)
+
+
 def test_the_paths_config_keeps_test_objects_out_of_training():
     with pytest.raises(ValueError, match="003_cracker_box"):
         vp.ViewspherePathsConfig(objects=("003_cracker_box",))
     with pytest.raises(ValueError, match="tries"):
         vp.ViewspherePathsConfig(tries=0)
+    with pytest.raises(ValueError, match="labels must be one of paths, bfs"):
+        vp.ViewspherePathsConfig(labels="oracle")
+    with pytest.raises(ValueError, match="prefix_steps needs labels='bfs'"):
+        vp.ViewspherePathsConfig(prefix_steps=2)
+    with pytest.raises(ValueError, match="procedural must be an int >= 0"):
+        vp.ViewspherePathsConfig(procedural=-1)
 
 
 def test_the_paths_dataset_resumes_and_extends_its_last_shard(tmp_path: Path):

@@ -52,6 +52,10 @@ def _data(args: argparse.Namespace) -> int:
         objects=args.objects,
         tries=args.tries,
         path_steps=args.path_steps,
+        labels=args.labels,
+        prefix_steps=args.prefix_steps,
+        procedural=args.procedural,
+        bfs_max_sets=args.bfs_max_sets,
     )
 
 
@@ -80,12 +84,13 @@ def _train(args: argparse.Namespace) -> int:
             if not args.data or not args.val:
                 raise config_error(f"--kind {args.kind} needs --data DIR and --val DIR")
             try:
-                metrics = vt.train_linear(
-                    args.kind.removeprefix("pca-"),
-                    [Path(p) for p in args.data],
-                    [Path(p) for p in args.val],
-                    out,
-                    seed=args.seed,
+                data, val = [Path(p) for p in args.data], [Path(p) for p in args.val]
+                metrics = (
+                    vt.train_mlp(data, val, out, seed=args.seed)
+                    if args.kind == "imitation"
+                    else vt.train_linear(
+                        args.kind.removeprefix("pca-"), data, val, out, seed=args.seed
+                    )
                 )
             except (FileNotFoundError, ValueError) as exc:
                 raise config_error(str(exc)) from None
@@ -99,7 +104,7 @@ def add_bench(sub: SubParsers, name: str = "bench") -> argparse.ArgumentParser:
     """Adds ``viewsphere bench`` (under ``name``)."""
     from heapgrasp.viewsphere import bench
     from heapgrasp.viewsphere.episode import LEARNED, POLICIES, SENSORS
-    from heapgrasp.viewsphere.grasps import ViewsphereConfig
+    from heapgrasp.viewsphere.grasps import PERCEPTIONS, ViewsphereConfig
     from heapgrasp.viewsphere.objects import TEST_OBJECTS, TRAIN_OBJECTS
 
     p = sub.add_parser(
@@ -160,6 +165,15 @@ def add_bench(sub: SubParsers, name: str = "bench") -> argparse.ArgumentParser:
         "opaque, transparent or specular (default ideal)",
     )
     p.add_argument(
+        "--perception",
+        choices=PERCEPTIONS,
+        default="depth",
+        help="what the grasp synthesis reads: the depth points (the paper's), the hull "
+        "carved from the views' silhouettes (HEAPGrasp's measurement: transparent and "
+        "specular objects measured as opaque ones), or fused: the depth inside the hull "
+        "beside its surface (default depth)",
+    )
+    p.add_argument(
         "--no-execute",
         dest="execute",
         action="store_false",
@@ -205,7 +219,7 @@ def add_bench(sub: SubParsers, name: str = "bench") -> argparse.ArgumentParser:
 
 def add_data(sub: SubParsers, name: str = "data") -> argparse.ArgumentParser:
     """Adds ``viewsphere data`` (under ``name``)."""
-    from heapgrasp.viewsphere.data import SUPERVISED_OBJECTS
+    from heapgrasp.viewsphere.data import LABELS, SUPERVISED_OBJECTS
     from heapgrasp.viewsphere.objects import TRAIN_OBJECTS
 
     p = dataset_parser(
@@ -236,6 +250,35 @@ def add_data(sub: SubParsers, name: str = "data") -> argparse.ArgumentParser:
         type=int_at_least(1),
         default=5,
         help="moves per path, at most (default 5)",
+    )
+    p.add_argument(
+        "--labels",
+        choices=LABELS,
+        default="paths",
+        help="paths: the paper's (random paths, the first direction of the shortest that "
+        "found a grasp); bfs: every first move of a shortest path, by breadth-first "
+        "search over the sets of views (within the bfs_max_sets budget; default paths)",
+    )
+    p.add_argument(
+        "--prefix-steps",
+        type=int_at_least(0),
+        default=0,
+        help="with --labels bfs: 0 to this many random moves before the state, so that "
+        "states of later steps are learned too (default 0: the start only)",
+    )
+    p.add_argument(
+        "--bfs-max-sets",
+        type=int_at_least(1),
+        default=300,
+        help="with --labels bfs: syntheses per state, at most; a state whose search finds "
+        "nothing within them is dropped (default 300; two levels take about 60)",
+    )
+    p.add_argument(
+        "--procedural",
+        type=int_at_least(0),
+        default=0,
+        help="procedural objects of each kind (box, cylinder, bottle, bowl, cup; none of "
+        "the benchmark's) beside --objects, resting in their most stable pose (default 0)",
     )
     p.set_defaults(func=_data)
     return p
@@ -270,9 +313,20 @@ def add_train(sub: SubParsers, name: str = "train") -> argparse.ArgumentParser:
             """
         ),
     )
-    p.add_argument("--kind", required=True, choices=("pca-lr", "pca-lda", "dqn"))
-    p.add_argument("--data", nargs="+", metavar="DIR", help="paths datasets to fit (pca-*)")
-    p.add_argument("--val", nargs="+", metavar="DIR", help="paths datasets to measure (pca-*)")
+    p.add_argument(
+        "--kind",
+        required=True,
+        choices=("pca-lr", "pca-lda", "dqn", "imitation"),
+        help="pca-lr, pca-lda, dqn: the paper's; imitation: a perceptron that imitates "
+        "the datasets' optimal first moves (beyond the paper: with viewsphere data "
+        "--labels bfs)",
+    )
+    p.add_argument(
+        "--data", nargs="+", metavar="DIR", help="paths datasets to fit (pca-*, imitation)"
+    )
+    p.add_argument(
+        "--val", nargs="+", metavar="DIR", help="paths datasets to measure (pca-*, imitation)"
+    )
     p.add_argument("--out", required=True, metavar="OUT", help="output directory")
     p.add_argument(
         "--episodes", type=int_at_least(1), default=1300, help="dqn: episodes (default 1300)"

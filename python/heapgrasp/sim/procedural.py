@@ -29,6 +29,7 @@ __all__ = [
     "PROCEDURAL_KINDS",
     "REVOLVE_SECTIONS",
     "generate_procedural",
+    "procedural_mesh",
     "revolve",
 ]
 
@@ -162,6 +163,18 @@ _MAKERS: dict[
     "bowl": _make_bowl,
     "cup": _make_cup,
 }
+
+
+def procedural_mesh(kind: str, index: int, seed: int = 0) -> trimesh.Trimesh:
+    """The visual mesh of procedural object ``index`` of ``kind`` for ``seed``, in
+    memory: the mesh :func:`generate_procedural` writes for it (upright, in its maker's
+    frame, not recentred)."""
+    if kind not in _MAKERS:
+        raise ValueError(f"kind must be one of {', '.join(PROCEDURAL_KINDS)}, got {kind!r}")
+    if index < 0 or seed < 0:
+        raise ValueError(f"index and seed must be >= 0, got {index} and {seed}")
+    rng = np.random.default_rng([int(seed), PROCEDURAL_KINDS.index(kind), int(index)])
+    return _MAKERS[kind](rng)[0]
 
 
 def generate_procedural(

@@ -152,6 +152,7 @@ def _settings(args: argparse.Namespace, config: ViewsphereConfig) -> dict[str, A
         "poses": args.poses,
         "seed": args.seed,
         "sensor": args.sensor,
+        "perception": args.perception,
         "execute": args.execute,
         "config": config.to_dict(),
         "weights": {
@@ -225,6 +226,7 @@ def _tasks(
                     args.sensor,
                     args.execute,
                     tuple(args.weights_files),
+                    args.perception,
                 )
             )
     return tasks, done

@@ -62,6 +62,8 @@ class PoseTask:
     execute: bool
     weights: tuple[tuple[str, str], ...] = ()
     """The learned policies' files, ``(model, path)``."""
+    perception: str = "depth"
+    """What the synthesis reads (:data:`~heapgrasp.viewsphere.grasps.PERCEPTIONS`)."""
 
 
 def _policy(
@@ -164,6 +166,7 @@ def run_pose(task: PoseTask) -> dict[str, Any]:
         config=config,
         sensor=sensor,
         seed=task.seed * 1000 + task.pose,
+        perception=task.perception,
     )
     record: dict[str, Any] = {"pose": task.pose, "yaw_deg": task.yaw_deg, "policies": {}}
     executor = _Executor(task) if task.execute else None

@@ -29,10 +29,17 @@ def _policy_summary(records: Sequence[Mapping[str, Any]], name: str, steps: int)
     taken = np.array([e["steps"] if e["found"] else steps for e in entries], dtype=np.float64)
     success = [float(np.mean(found & (taken <= s))) if n else 0.0 for s in range(steps + 1)]
     executed = [e["executed"] for e in entries if e.get("executed") is not None]
+    held = np.array([e.get("executed") == "success" for e in entries], dtype=bool)
     decisions = [t for e in entries for t in e.get("decisions_s", [])]
     return {
         "poses_run": n,
         "success_at_step": success,
+        # Found by the step and held when executed (None unless every found grasp was).
+        "held_at_step": (
+            [float(np.mean(found & held & (taken <= s))) for s in range(steps + 1)]
+            if n and len(executed) == int(found.sum())
+            else None
+        ),
         "mean_steps": float(taken.mean()) if n else None,
         "mean_travelled_steps": (
             float(np.mean([e.get("travelled_steps", 0.0) for e in entries])) if n else None

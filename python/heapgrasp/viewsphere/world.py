@@ -64,6 +64,7 @@ class ViewsphereWorld:
         sensor: Category | None = None,
         depth_model: DepthModel | None = None,
         seed: int = 0,
+        perception: str = "depth",
     ) -> None:
         if not meshes:
             raise ValueError("the world needs at least one mesh")
@@ -91,7 +92,12 @@ class ViewsphereWorld:
         self._table.add_mesh(tv, tf, np.eye(4))
         self._core_camera = camera.core()
         self.grasps = ViewsphereGrasps(
-            self.render, sphere=self.sphere, camera=camera, config=self.config
+            self.render,
+            sphere=self.sphere,
+            camera=camera,
+            config=self.config,
+            silhouette=self.silhouette,
+            perception=perception,
         )
 
     def render(self, pose: SpherePose) -> npt.NDArray[np.float32]:
