@@ -270,6 +270,19 @@ class Hull:
     rims: npt.NDArray[np.bool_]
     cone_normals: F64
     cameras: F64
+    corner: F64
+    voxel: float
+
+    def holds(self, points: F64, grow: bool = False) -> npt.NDArray[np.bool_]:
+        """Which ``points`` fall in a cell of the hull (``grow``: of the hull grown by
+        one cell)."""
+        cells = _grown(self.cells) if grow else self.cells
+        res = np.array(cells.shape)
+        idx = np.floor((points - self.corner) / self.voxel).astype(np.int64)
+        ok = np.all((idx >= 0) & (idx < res), axis=1)
+        out = np.zeros(len(points), dtype=bool)
+        out[ok] = cells[tuple(idx[ok].T)]
+        return out
 
     def touchable(self, *, views: int, agree_deg: float, apart_deg: float) -> npt.NDArray[np.bool_]:
         """The surface points a finger may touch: frontier points, where the hull
@@ -444,6 +457,8 @@ class ViewsphereGrasps:
                 cells=inside,
                 **_rims([self._rim(surface, p) for p in ordered]),
                 cameras=np.stack([self.sphere.camera_pose(p)[:3, 3] for p in ordered]),
+                corner=corner,
+                voxel=c.voxel,
             )
         return self._hulls[key]
 
@@ -507,21 +522,8 @@ class ViewsphereGrasps:
         if self.perception == "silhouette":
             return hull.surface, hull, table_z
         depth, _ = self._depth_object_points(poses)
-        near = depth[self._in_hull(depth, _grown(hull.cells))]
+        near = depth[hull.holds(depth, grow=True)]
         return np.ascontiguousarray(np.vstack([hull.surface, near])), hull, table_z
-
-    def _in_hull(self, points: F64, cells: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
-        """Which ``points`` fall in a cell of ``cells`` (the hull's grid)."""
-        c = self.config
-        res = cells.shape[0]
-        size = res * c.voxel
-        centre = np.asarray(self.sphere.centre, dtype=np.float64)
-        origin = np.array([centre[0] - size / 2, centre[1] - size / 2, centre[2]])
-        idx = np.floor((points - origin) / c.voxel).astype(np.int64)
-        ok = np.all((idx >= 0) & (idx < res), axis=1)
-        out = np.zeros(len(points), dtype=bool)
-        out[ok] = cells[tuple(idx[ok].T)]
-        return out
 
     def _depth_object_points(self, poses: Sequence[SpherePose]) -> tuple[F64, float]:
         """The fused object points of ``poses`` above the table the first pose shows,
@@ -549,7 +551,7 @@ class ViewsphereGrasps:
             return self.hull(poses).interior
         region = self._depth_unexplored(poses)
         if self.perception == "fused":
-            out: F64 = region[self._in_hull(region, self.hull(poses).cells)]
+            out: F64 = region[self.hull(poses).holds(region)]
             return out
         return region
 
