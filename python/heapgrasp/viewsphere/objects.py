@@ -336,9 +336,13 @@ def _stable_rotations(
     vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.int64]
 ) -> list[npt.NDArray[np.float64]]:
     """The rotations of the mesh's stable poses, most probable first (trimesh's
-    quasi-static estimate on its convex hull)."""
+    quasi-static estimate on its convex hull, about the mesh's centre of mass, or its
+    hull's when the mesh is not closed)."""
     mesh = trimesh.Trimesh(vertices, faces, process=True)
-    transforms, _ = trimesh.poses.compute_stable_poses(mesh)
+    # A scan that is not closed has no volume to weigh: its hull's centre stands in.
+    closed = mesh.is_watertight and mesh.volume > 0
+    centre = mesh.center_mass if closed else mesh.convex_hull.center_mass
+    transforms, _ = trimesh.poses.compute_stable_poses(mesh, center_mass=centre)
     return [np.asarray(t, dtype=np.float64)[:3, :3] for t in transforms]
 
 
