@@ -677,10 +677,9 @@ def _boundary_faces(cells: npt.NDArray[np.bool_], corner: F64, voxel: float) -> 
     return np.vstack(out)
 
 
-def _grown(cells: npt.NDArray[np.bool_], outside: bool = False) -> npt.NDArray[np.bool_]:
-    """``cells`` grown by one cell along each axis (6-neighbours), the cells beyond the
-    grid's faces counting as ``outside``."""
-    padded = np.pad(cells, 1, constant_values=outside)
+def _grown(cells: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """``cells`` grown by one cell along each axis (6-neighbours)."""
+    padded = np.pad(cells, 1, constant_values=False)
     out = cells.copy()
     inner = (slice(1, -1),) * 3
     for axis in range(3):
