@@ -59,6 +59,7 @@ SHIPPED_VIEWSPHERE_POLICIES: Final[Mapping[str, str]] = {
     "pca-lr": "viewsphere_pca_lr.onnx",
     "pca-lda": "viewsphere_pca_lda.onnx",
     "dqn": "viewsphere_dqn.onnx",
+    "imitation": "viewsphere_imitation.onnx",
 }
 
 #: The shipped grasp network of each input kind (``hparams["input_kind"]``): the

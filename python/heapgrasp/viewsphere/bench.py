@@ -16,6 +16,10 @@ made. A pose without a grasp after them counts 6 steps. The policies:
 * ``pca-lr``, ``pca-lda``, ``dqn``: Natarajan et al.'s learned policies (§4.3), trained on the
   training shapes only (:mod:`heapgrasp.viewsphere.learned`), from the shipped
   files or ``--weights MODEL=FILE``;
+* ``imitation`` (beyond the paper): a perceptron imitating breadth-first search's
+  optimal first moves on the training shapes and procedural objects
+  (:func:`heapgrasp.viewsphere.training.train_mlp`), from its shipped file or
+  ``--weights imitation=FILE``;
 * ``heapgrasp-net``, ``heapgrasp-oracle``: HEAPGrasp's eq. 14 on a grid carved from the
   views' silhouettes (no depth), scored by the shipped view network or, privileged, by
   the exact oracle reading the true meshes

@@ -31,6 +31,7 @@ POLICIES = (
     "pca-lr",
     "pca-lda",
     "dqn",
+    "imitation",
     "heapgrasp-net",
     "heapgrasp-oracle",
     "bfs",
@@ -40,7 +41,7 @@ POLICIES = (
 #: compares their path in steps).
 VIEWPOINT_POLICIES = ("information-gain",)
 #: The learned policies: each runs a policy file (shipped, or ``--weights MODEL=FILE``).
-LEARNED = ("pca-lr", "pca-lda", "dqn")
+LEARNED = ("pca-lr", "pca-lda", "dqn", "imitation")
 #: The sensor options: the paper's ideal depth, or our depth sensor's model with the
 #: object of that optical category.
 SENSORS = ("ideal", "opaque", "transparent", "specular")

@@ -70,7 +70,7 @@ GRID = 5
 #: The state's length, ``2n² + 2``.
 N_FEATURES = 2 * GRID * GRID + 2
 #: The learned policies' models.
-MODELS = ("pca-lr", "pca-lda", "dqn")
+MODELS = ("pca-lr", "pca-lda", "dqn", "imitation")
 #: The ONNX opset of policy files.
 OPSET = 17
 #: The grid's half side over the object's half extent, and its least half side (m).
