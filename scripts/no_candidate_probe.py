@@ -40,6 +40,7 @@ def probe_scene(
     epsilon: float,
     most: int,
     probe_planner: Any = None,
+    fine_check: bool = False,
 ) -> list[dict[str, Any]]:
     """``probe_planner``: plans the probed grids in place of the loop's planner (the loop
     itself runs as configured)."""
@@ -86,6 +87,23 @@ def probe_scene(
                 finally:
                     critic.threshold = threshold
                 probs = {c.index: c.score for c in rescored}
+            fine: dict[Any, dict[str, bool]] = {}
+            if fine_check:
+                from heapgrasp.planning.hull_check import HullCheck
+
+                for c in cands:
+                    centre = c.pose[:3, 3] - 0.03 * c.pose[:3, 2]
+                    row = {}
+                    for name, radius in (("fine", perception.roof_radius), ("fine_raw", 0.0)):
+                        keep_radius = perception.roof_radius
+                        perception.roof_radius = radius
+                        try:
+                            occ, frame = perception.local_input(centre)
+                        finally:
+                            perception.roof_radius = keep_radius
+                        check = HullCheck(occ > 0, frame, gripper=pipeline.robot.gripper.geometry)
+                        row[name] = not bool(check(c.pose[None])[0])
+                    fine[c.index] = row
             state = pb.saveState(physicsClientId=world.client)
             for c in cands:
                 width = min(c.width + 0.01, MAX_OPENING)
@@ -101,6 +119,8 @@ def probe_scene(
                         "tilt_deg": float(np.degrees(np.arccos(-c.pose[2, 2]))),
                         "outcome": outcome.outcome.value,
                         "left": len(world.objects),
+                        "width": float(c.width),
+                        **fine.get(c.index, {}),
                     }
                 )
                 pb.restoreState(state, physicsClientId=world.client)
@@ -164,6 +184,12 @@ def main() -> int:
         help="probe with an analytic planner that takes the hand to open this wide (m): "
         "0.0875 for the Panda's 0.08 m is its width rule on voxel centres instead of faces",
     )
+    ap.add_argument(
+        "--fine",
+        action="store_true",
+        help="also check each candidate's hand against the phase's silhouettes carved "
+        "finer around it (2.5 mm voxels), roofs trimmed and not",
+    )
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
     config = RunConfig(seed=args.seed).replace(parse_sets(args.set), source="--set")
@@ -176,7 +202,7 @@ def main() -> int:
         planner = AntipodalPlanner(max_opening=args.max_opening, gripper=PANDA_HAND)
     with args.out.open("w") as f:
         for i in range(args.scenes):
-            got = probe_scene(config, i, args.epsilon, args.max, planner)
+            got = probe_scene(config, i, args.epsilon, args.max, planner, args.fine)
             rows.extend(got)
             for r in got:
                 f.write(json.dumps(r) + "\n")

@@ -156,6 +156,7 @@ def test_settings_are_grouped_and_the_paper_preset_is_table_one_alone() -> None:
         "failed_grasp_radius",
         "target_radius",
         "look_again",
+        "fine_width",
     }
 
 

@@ -329,7 +329,12 @@ def test_the_sweep_ends_where_the_grasp_is_sure(tmp_path: Path, sure_at: int | N
 def test_a_phase_that_found_no_grasp_does_not_sweep(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
     config = RunConfig(
-        gamma2=0.0, stop_below=0.02, stop_confidence=0.95, sweep_degrees=180.0, look_again=0
+        gamma2=0.0,
+        stop_below=0.02,
+        stop_confidence=0.95,
+        sweep_degrees=180.0,
+        look_again=0,
+        fine_width=False,
     )
     result, _ = _plan_scripted(model, config, [[], [], []], view_level=0.05)
     waypoints = result.extra["waypoints"]
@@ -363,15 +368,45 @@ def test_a_phase_without_a_candidate_looks_again_from_the_turned_start(tmp_path:
 
 def test_a_phase_gives_up_after_its_looks_again(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
-    result, _ = _plan_scripted(model, RunConfig(gamma2=0.0, look_again=1), [[], []])
+    # the third call: the final grid planned once more at the finer width (fine_width)
+    result, _ = _plan_scripted(model, RunConfig(gamma2=0.0, look_again=1), [[], [], []])
     assert result.grasp is None
     assert [(x["turn_deg"], x["found"]) for x in result.extra["looked_again"]] == [
         (pytest.approx(180.0), False)
     ]
-    # the paper's rule: no candidate, no second look
-    result, _ = _plan_scripted(model, RunConfig(gamma2=0.0, look_again=0), [[]])
+    fine = result.extra["fine_width"]
+    assert fine.pop("time_s") >= 0.0
+    assert fine == {"candidates": 0, "checked": 0, "found": False}
+    # the paper's rule: no candidate, no second look, no second plan
+    paper = RunConfig(gamma2=0.0, look_again=0, fine_width=False)
+    result, _ = _plan_scripted(model, paper, [[]])
     assert result.grasp is None and result.extra["looked_again"] == []
+    assert "fine_width" not in result.extra
     assert len(result.extra["waypoints"]) == RunConfig().L
+
+
+def test_a_lying_box_too_wide_for_the_voxel_faces_is_grasped_at_the_finer_width(
+    tmp_path: Path,
+) -> None:
+    # A 5.5 cm wide box lying flat: on the circle's hull, the opening measured at the
+    # extreme voxels' outer faces leaves no grasp; measured at their centres, and checked
+    # against the silhouettes carved three times finer, the box is taken.
+    model = box_model(tmp_path, (0.055, 0.12, 0.05))
+    outcomes = {}
+    for fine in (False, True):
+        config = RunConfig(method="no-vp", objects=1, look_again=0, fine_width=fine)
+        with SimWorld(ObjectLibrary([model]), seed=0) as world:
+            world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+            pipeline = sim_pipeline(config, world)
+            assert (pipeline.wide_planner is not None) == fine
+            phases, reason = run_clutter_removal(
+                pipeline.robot, pipeline.plan, truth=pipeline.truth
+            )
+        outcomes[fine] = (reason, [p.outcome for p in phases], phases[0].to_dict())
+    assert outcomes[False][:2] == (StopReason.NO_CANDIDATE, ["no_candidate"])
+    reason, tried, record = outcomes[True]
+    assert (reason, tried) == (StopReason.CLEARED, ["success"])
+    assert record["fine_width"]["found"] and record["fine_width"]["checked"] >= 1
 
 
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:

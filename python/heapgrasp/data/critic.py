@@ -124,6 +124,7 @@ class CriticDataConfig:
             grasp_critic=self.critic,
             # the phases as the critic's data has always sampled them: one look each
             look_again=0,
+            fine_width=False,
             **start,  # type: ignore[arg-type]
         )
         return config.replace(dict(self.overrides), source="critic data --set")

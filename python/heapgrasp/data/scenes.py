@@ -68,6 +68,7 @@ def run_config(split: str, start: str, L: int, method: str = "heapgrasp") -> Any
         L=L,
         grasp_critic="none",
         look_again=0,
+        fine_width=False,
     )
 
 

@@ -254,6 +254,13 @@ class RunConfig:
     the protocol stops on "no candidate" (rule iii): from the start pose turned about
     the scene (180°, then 90°, then 270°: :data:`heapgrasp.loop.phase.LOOK_AGAIN_TURNS`),
     viewing as the phase did and carving the same grid. 0: stop at once (the paper)."""
+    fine_width: bool = _ext(True, "ours")
+    """Where a phase still finds no grasp after its looks again: the analytic planner
+    plans the final grid once more measuring each grasp's opening at the extreme voxel
+    centres rather than their outer faces (one voxel wider), and a candidate is taken
+    only when the hand, fully open, clears the phase's silhouettes carved again three
+    times finer around it (:meth:`heapgrasp.loop.phase.Pipeline.fine_width_grasp`).
+    Silhouette methods with the analytic planner; False: the phase ends (the paper)."""
 
     def __post_init__(self) -> None:
         # Files as absolute paths: a saved run is resumed, shown and replayed from
@@ -590,6 +597,7 @@ PAPER_EXTENSIONS: dict[str, Any] = {
     "sweep_degrees": 0.0,
     "sweep_step": 45.0,
     "look_again": 0,
+    "fine_width": False,
 }
 
 

@@ -80,6 +80,9 @@ if TYPE_CHECKING:
     pass
 
 __all__ = [
+    "FINE_WIDTH_CUBE",
+    "FINE_WIDTH_DIVISOR",
+    "FINE_WIDTH_TRIES",
     "LOOK_AGAIN_TURNS",
     "MEMORY_TOLERANCE",
     "SILHOUETTE_VIEWS",
@@ -93,6 +96,13 @@ F64 = npt.NDArray[np.float64]
 #: scene's vertical axis (rad) — the far side first — and views from there as the phase
 #: did (eq. 16-19, or the fixed methods' waypoints turned alike), carving the same grid.
 LOOK_AGAIN_TURNS = (np.pi, np.pi / 2, 3 * np.pi / 2)
+
+#: :meth:`Pipeline.fine_width_grasp`: the silhouettes are carved again in a cube of this
+#: side (m) around each candidate, with voxels this many times smaller than the grid's,
+#: for at most this many candidates.
+FINE_WIDTH_CUBE = 0.16
+FINE_WIDTH_DIVISOR = 3
+FINE_WIDTH_TRIES = 8
 #: Frames (evenly spaced over the phase) that check the trimmed hull against their
 #: silhouettes (:func:`heapgrasp.perception.roofs.keep_silhouettes`).
 SILHOUETTE_VIEWS = 24
@@ -152,6 +162,10 @@ class Pipeline:
     whose grid is carved from the same frames, each phase afresh, and compared with the
     run's ``Ŝ≥λ`` at the end of every phase (the phase's ``reference_grid``: Table V's
     MSE and IoU). Not part of the method: it steers nothing and its time is not counted."""
+    wide_planner: GraspPlanner | None = None
+    """``RunConfig.fine_width``: the grasp planner measuring openings one voxel wider,
+    planned where a phase would end with no candidate (:meth:`fine_width_grasp`); None:
+    the phase ends."""
 
     def __post_init__(self) -> None:
         cfg = self.config
@@ -522,6 +536,45 @@ class Pipeline:
             self._sweep(phase, self.sweep)
         return target
 
+    def fine_width_grasp(self) -> tuple[GraspCandidate | None, dict[str, Any]]:
+        """``RunConfig.fine_width``, where a phase would end with no candidate: a grasp
+        whose opening is measured finer than the grid's voxel, and a record of the search.
+
+        The analytic planner measures an opening at the outer faces of the extreme
+        voxels, but carving keeps a voxel when its *centre* projects inside every
+        silhouette, so the object may end anywhere within half a voxel of that centre:
+        the faces count up to one voxel (7.5 mm) too many, and a lying box whose side is
+        within a voxel of the hand's opening gets no grasp (``docs/experiments.md``,
+        "Clearing the table"). The final grid is planned again by :attr:`wide_planner`
+        (the opening one voxel wider, i.e. measured at the extreme centres) and its
+        candidates, best first (the critic's order where there is one), are checked with
+        the hand fully open against the phase's silhouettes carved again around each
+        (:meth:`~heapgrasp.perception.silhouette.SilhouettePerception.local_input`, the
+        voxel :data:`FINE_WIDTH_DIVISOR` times smaller); the first whose hand touches
+        nothing of that finer hull and closes on some of it is taken. At most
+        :data:`FINE_WIDTH_TRIES` are checked."""
+        assert self.wide_planner is not None
+        record: dict[str, Any] = {"candidates": 0, "checked": 0, "found": False}
+        perception = self.perception
+        if not isinstance(perception, SilhouettePerception):
+            return None, record
+        with self.planning_as(self.config, self.wide_planner, self.critic):
+            cands = self.grasp_candidates()
+        record["candidates"] = len(cands)
+        gripper = self.robot.gripper.geometry
+        resolution = FINE_WIDTH_DIVISOR * round(FINE_WIDTH_CUBE / self.frame.voxel_size)
+        for cand in cands[:FINE_WIDTH_TRIES]:
+            record["checked"] += 1
+            # the cube holds the fingers from the pre-grasp pose to the grasp
+            centre = cand.pose[:3, 3] - 0.5 * (PREGRASP_DISTANCE + 0.04) * cand.pose[:3, 2]
+            occ, frame = perception.local_input(centre, FINE_WIDTH_CUBE, resolution)
+            check = HullCheck(occ > 0, frame, gripper=gripper, pregrasp_distance=PREGRASP_DISTANCE)
+            if not bool(check(cand.pose[None])[0]):
+                record["found"] = True
+                record["score"] = cand.score
+                return cand, record
+        return None, record
+
     def _fixed_views(self, phase: _PhaseLog, turn: float = 0.0) -> None:
         """The fixed-view methods' waypoints (turned by ``turn``, rad)."""
         for goal in self.fixed_waypoints(turn):
@@ -613,6 +666,16 @@ class Pipeline:
                     "found": chosen is not None,
                 }
             )
+        fine: dict[str, Any] | None = None
+        if chosen is None and self.wide_planner is not None:
+            t0 = time.perf_counter()
+            chosen, fine = self.fine_width_grasp()
+            fine["time_s"] = time.perf_counter() - t0
+            phase.compute += fine["time_s"]
+            if chosen is not None:
+                best = chosen
+                if self.observer is not None:
+                    self.observer.target(chosen)
         memory: dict[str, Any] | None = None
         if isinstance(self.perception, SilhouettePerception):
             memory = self.perception.memory_record
@@ -633,6 +696,8 @@ class Pipeline:
             "best_grasp": _candidate_record(best),
             "looked_again": looks,
         }
+        if fine is not None:
+            extra["fine_width"] = fine
         if self.config.scene_memory:
             extra["memory"] = memory
         if self.reference is not None and isinstance(self.perception, SilhouettePerception):

@@ -49,6 +49,7 @@ __all__ = [
     "make_grasp_planner",
     "make_segmenter",
     "make_view_scorer",
+    "make_wide_planner",
     "method_of",
     "net_device",
 ]
@@ -104,6 +105,22 @@ def net_device(config: RunConfig) -> str:
         return resolve_device(config.net_device)
     except ValueError as err:
         raise ConfigError(f"net_device: {err}") from None
+
+
+def make_wide_planner(
+    config: RunConfig, gripper: GripperGeometry = PANDA_HAND
+) -> GraspPlanner | None:
+    """``RunConfig.fine_width``'s second planner: the analytic planner measuring openings
+    at the extreme voxel centres (the opening it may use one grid voxel wider), for a
+    silhouette method whose planner is the analytic one; None elsewhere."""
+    if not config.fine_width or config.grasp_planner != "antipodal":
+        return None
+    if method_of(config).depth:
+        return None
+    from heapgrasp.planning.antipodal import AntipodalPlanner
+
+    voxel = config.cube_size / config.resolution
+    return AntipodalPlanner(max_opening=gripper.max_opening + voxel, gripper=gripper)
 
 
 def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND) -> GraspPlanner:
@@ -257,4 +274,8 @@ def build_pipeline(
         truth=truth,
         observer=observer,
         reference_segmenter=reference_segmenter,
+        # with a planner passed in, the caller chose what plans: no second planner
+        wide_planner=make_wide_planner(config, robot.gripper.geometry)
+        if grasp_planner is None
+        else None,
     )

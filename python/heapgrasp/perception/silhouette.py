@@ -199,6 +199,45 @@ class SilhouettePerception:
         """``Ŝ_{0-1}`` (eq. 10)."""
         return self.grid.occupancy()
 
+    def local_input(
+        self, centre: npt.ArrayLike, size: float = 0.16, resolution: int = 64
+    ) -> tuple[F32, GridFrame]:
+        """The grasp planner's input (:meth:`grasp_input`) carved again, finer, in a cube
+        of side ``size`` (m) centred at ``centre`` (world, m) at ``resolution`` voxels
+        per axis, from the phase's silhouettes (the frames of :attr:`views`); the cube is
+        kept above the table (``z >= 0``). Returns the grid and where it lies. Without
+        silhouettes kept (``roof_radius`` = 0 keeps none) the grid is empty."""
+        c = np.asarray(centre, dtype=np.float64).reshape(3)
+        if not np.isfinite(c).all():
+            raise ValueError(f"centre must be 3 finite numbers, got {centre!r}")
+        origin = c - size / 2
+        origin[2] = max(float(origin[2]), 0.0)
+        frame = GridFrame((float(origin[0]), float(origin[1]), float(origin[2])), size, resolution)
+        grid = OccupancyGrid(frame.origin, frame.size, frame.resolution)
+        if not self.views:
+            return np.zeros((resolution,) * 3, dtype=np.float32), frame
+        by_camera: dict[tuple[float, ...], list[SilhouetteView]] = {}
+        for v in self.views:
+            cam = v.camera
+            key = (cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy)
+            by_camera.setdefault(key, []).append(v)
+        for views in by_camera.values():
+            grid.integrate_many(
+                np.stack([v.mask for v in views]),
+                views[0].camera,
+                np.ascontiguousarray(np.stack([v.cam2world for v in views])),
+            )
+        high = grid.high_confidence(self.lam)
+        if self.roof_radius <= 0:
+            return high, frame
+        trimmed = trim_roofs(high, frame.voxel_size, self.roof_radius)
+        n = len(self.views)
+        pick = np.unique(np.linspace(0, n - 1, min(n, self.silhouette_views)).round().astype(int))
+        kept = keep_silhouettes(
+            high, trimmed, frame.origin, frame.voxel_size, [self.views[i] for i in pick]
+        )
+        return kept, frame
+
     def grasp_input(self) -> F32:
         """The grasp planner's input: the high-confidence grid ``Ŝ≥λ``; when
         ``roof_radius`` > 0 with its roofs trimmed (:func:`~heapgrasp.perception.roofs.trim_roofs`)

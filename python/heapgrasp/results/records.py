@@ -49,7 +49,7 @@ LOCK_FILE = ".lock"
 #: had: a ``config.json`` without the key is read with this value (the run's own), so
 #: that ``--resume``, ``show`` and ``replay`` run it as it ran. Settings whose default
 #: is the old behaviour need no entry.
-SETTINGS_BEFORE_THEY_EXISTED: dict[str, Any] = {"look_again": 0}
+SETTINGS_BEFORE_THEY_EXISTED: dict[str, Any] = {"look_again": 0, "fine_width": False}
 
 
 class RecordError(ValueError):

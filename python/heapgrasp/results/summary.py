@@ -192,6 +192,18 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
                 1 for p in phase_dicts if p.get("looked_again") and p["looked_again"][-1]["found"]
             ),
         },
+        # Phases that would have ended with no candidate and planned once more at the
+        # finer width (RunConfig.fine_width), how many found a grasp there, and how many
+        # of those held.
+        "fine_width": {
+            "phases": sum(1 for p in phase_dicts if p.get("fine_width")),
+            "found": sum(1 for p in phase_dicts if (p.get("fine_width") or {}).get("found")),
+            "held": sum(
+                1
+                for p in phase_dicts
+                if (p.get("fine_width") or {}).get("found") and p.get("outcome") == "success"
+            ),
+        },
         # With pixel-flip noise: Ŝ≥λ against the noise-free grid of the same frames at the
         # end of each phase (Table V), None without noise.
         "reference_grid": _reference(phase_dicts),
@@ -240,6 +252,12 @@ def format_summary(summary: dict[str, Any]) -> str:
         lines.append(
             f"looked again: {looked['phases']} phase(s) found no grasp at first; "
             f"{looked['found']} found one on a look again"
+        )
+    fine = summary.get("fine_width") or {}
+    if fine.get("phases"):
+        lines.append(
+            f"finer width: {fine['phases']} phase(s) would have ended with no grasp; "
+            f"{fine['found']} found one measured finer, {fine['held']} of them held"
         )
     ref = summary.get("reference_grid")
     if ref:
