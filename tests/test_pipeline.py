@@ -527,6 +527,11 @@ def test_an_interrupted_run_resumes_without_losing_scenes(tmp_path: Path) -> Non
     assert "stopped viewing early" not in format_summary(summary)
     stopped = format_summary({**summary, "early_stops": 1})
     assert f"(1 of {len(summary['phases'])} phases stopped viewing early)" in stopped
+    # the phases that planned again at the finer width, counted and printed
+    assert set(summary["fine_width"]) == {"phases", "found", "held"}
+    assert "finer width" not in format_summary({**summary, "fine_width": {"phases": 0}})
+    finer = format_summary({**summary, "fine_width": {"phases": 3, "found": 2, "held": 1}})
+    assert "finer width: 3 phase(s) would have ended with no grasp; 2 found one" in finer
     # Same seeds → same scenes: a fresh run of scene 0 gives the same record.
     again = run(config.replace({"scenes": 1}), None, progress=False)
     np.testing.assert_allclose(

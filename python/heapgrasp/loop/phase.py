@@ -19,7 +19,10 @@ The extensions (:mod:`heapgrasp.loop.extensions`) are asked at fixed points: the
 stop at each view waypoint from the second on, the rim sweep after the last one. Where
 step 3 finds no candidate, the phase looks again (``RunConfig.look_again``): the camera
 moves to the start turned about the scene (:data:`LOOK_AGAIN_TURNS`) and steps 2–3 run
-once more on the same grid, before the phase reports no candidate.
+once more on the same grid. Where the last look finds none either, a silhouette method
+with the analytic planner plans the final grid once more with the grasp's opening
+measured finer (``RunConfig.fine_width``, :meth:`Pipeline.fine_width_grasp`), before
+the phase reports no candidate.
 
 Every method forgets candidates within ``failed_grasp_radius`` of a grasp that failed
 since the last success (:meth:`Pipeline.record_outcome`): an empty grasp usually leaves
