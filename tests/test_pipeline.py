@@ -368,15 +368,13 @@ def test_a_phase_without_a_candidate_looks_again_from_the_turned_start(tmp_path:
 
 def test_a_phase_gives_up_after_its_looks_again(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
-    # the third call: the final grid planned once more at the finer width (fine_width)
-    result, _ = _plan_scripted(model, RunConfig(gamma2=0.0, look_again=1), [[], [], []])
+    # (the finer width plans the real grid: off here, tested on its own below)
+    config = RunConfig(gamma2=0.0, look_again=1, fine_width=False)
+    result, _ = _plan_scripted(model, config, [[], []])
     assert result.grasp is None
     assert [(x["turn_deg"], x["found"]) for x in result.extra["looked_again"]] == [
         (pytest.approx(180.0), False)
     ]
-    fine = result.extra["fine_width"]
-    assert fine.pop("time_s") >= 0.0
-    assert fine == {"candidates": 0, "checked": 0, "found": False}
     # the paper's rule: no candidate, no second look, no second plan
     paper = RunConfig(gamma2=0.0, look_again=0, fine_width=False)
     result, _ = _plan_scripted(model, paper, [[]])

@@ -414,3 +414,24 @@ def test_the_silhouettes_carved_finer_around_a_point_measure_the_hull_closer() -
     bare = SilhouettePerception(FRAME, MASKS)
     bare.update(frames)
     assert not bare.local_input((0.0, 0.0, 0.06))[0].any()
+
+
+def test_the_silhouettes_carved_again_reach_beyond_the_grid() -> None:
+    # A box reaching 4 cm out of the grid's +x side: the grid holds what lies inside;
+    # the same frames carved into a cube grown by 8 voxels hold the rest too.
+    _, views = _carve([((0.14, 0.0, 0.025), (0.10, 0.05, 0.05))])
+    spec = CameraSpec()
+    frames = [MaskedFrame(cam2world=v.cam2world, camera=spec, mask=v.mask) for v in views]
+    perception = SilhouettePerception(FRAME, MASKS, roof_radius=0.0225)
+    perception.update(frames)
+    grown = FRAME.size + 16 * V
+    grid, frame = perception.local_grid((0.0, 0.0, grown / 2), grown, R_GRID + 16)
+    assert frame.origin == pytest.approx((-0.15 - 8 * V, -0.15 - 8 * V, 0.0))
+    high = grid.high_confidence(0.9) > 0
+    x = frame.origin[0] + (np.argwhere(high)[:, 0] + 0.5) * V
+    assert x.max() > 0.18  # the box ends at 0.19
+    # inside the grid the two agree voxel for voxel
+    inner = high[8:-8, 8:-8, :R_GRID]
+    np.testing.assert_array_equal(inner, perception.grid.high_confidence(0.9) > 0)
+    planned = perception.planner_input(grid.high_confidence(0.9), frame)
+    assert planned.shape == high.shape and ((planned > 0) <= high).all()

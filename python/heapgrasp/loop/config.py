@@ -256,11 +256,12 @@ class RunConfig:
     viewing as the phase did and carving the same grid. 0: stop at once (the paper)."""
     fine_width: bool = _ext(True, "ours")
     """Where a phase still finds no grasp after its looks again: the analytic planner
-    plans the final grid once more measuring each grasp's opening at the extreme voxel
-    centres rather than their outer faces (one voxel wider), and a candidate is taken
-    only when the hand, fully open, clears the phase's silhouettes carved again three
-    times finer around it (:meth:`heapgrasp.loop.phase.Pipeline.fine_width_grasp`).
-    Silhouette methods with the analytic planner; False: the phase ends (the paper)."""
+    plans once more, on the phase's silhouettes carved into a grid 6 cm wider on every
+    side, measuring each grasp's opening at the extreme voxel centres rather than their
+    outer faces (one voxel wider), and a candidate is taken only when the hand, fully
+    open, clears the silhouettes carved again three times finer around it
+    (:meth:`heapgrasp.loop.phase.Pipeline.fine_width_grasp`). Silhouette methods with
+    the analytic planner; False: the phase ends (the paper)."""
 
     def __post_init__(self) -> None:
         # Files as absolute paths: a saved run is resumed, shown and replayed from

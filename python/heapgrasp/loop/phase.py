@@ -85,6 +85,7 @@ if TYPE_CHECKING:
 __all__ = [
     "FINE_WIDTH_CUBE",
     "FINE_WIDTH_DIVISOR",
+    "FINE_WIDTH_MARGIN",
     "FINE_WIDTH_TRIES",
     "LOOK_AGAIN_TURNS",
     "MEMORY_TOLERANCE",
@@ -106,6 +107,9 @@ LOOK_AGAIN_TURNS = (np.pi, np.pi / 2, 3 * np.pi / 2)
 FINE_WIDTH_CUBE = 0.16
 FINE_WIDTH_DIVISOR = 3
 FINE_WIDTH_TRIES = 8
+#: :meth:`Pipeline.fine_width_grasp` plans on the grid grown by this many voxels on every
+#: side but the table's (6 cm at Table I's 7.5 mm).
+FINE_WIDTH_MARGIN = 8
 #: Frames (evenly spaced over the phase) that check the trimmed hull against their
 #: silhouettes (:func:`heapgrasp.perception.roofs.keep_silhouettes`).
 SILHOUETTE_VIEWS = 24
@@ -244,31 +248,47 @@ class Pipeline:
     def grasp_candidates(self) -> list[GraspCandidate]:
         """Grasp planning on the current grid and eq. 15's post-processing; with a
         critic, its probabilities are the scores."""
-        cfg = self.config
-        critic = self.critic
+        high = None
         if isinstance(self.perception, DepthPerception) and self.grasp_planner.input_kind == "tsdf":
             grid = self.perception.tsdf_values()
         else:
             grid = self.perception.grasp_input()
-        volumes = self.grasp_planner.predict(grid, self.frame)
-        sigma = cfg.sigma if cfg.sigma is not None else self.grasp_planner.sigma
+        if isinstance(self.perception, SilhouettePerception):
+            high = self.perception.grid.high_confidence(self.config.lam)
+        cands = self._candidates(self.grasp_planner, grid, high, self.frame)
+        if self.observer is not None:
+            self.observer.candidates(cands)
+        return cands
+
+    def _candidates(
+        self,
+        planner: GraspPlanner,
+        grid: npt.NDArray[np.float32],
+        high: npt.NDArray[np.float32] | None,
+        frame: GridFrame,
+    ) -> list[GraspCandidate]:
+        """:meth:`grasp_candidates` on ``grid`` at ``frame`` by ``planner``; ``high``:
+        the silhouette methods' ``Ŝ≥λ`` of the same cube (the hull check's and the
+        critic's), None for depth."""
+        cfg = self.config
+        critic = self.critic
+        volumes = planner.predict(grid, frame)
+        sigma = cfg.sigma if cfg.sigma is not None else planner.sigma
         if cfg.epsilon is not None:
             eps = cfg.epsilon
         elif critic is not None:  # the critic's own ε applies to its probabilities
             eps = critic.candidate_epsilon
         else:
-            eps = self.grasp_planner.epsilon
+            eps = planner.epsilon
         gripper = self.robot.gripper.geometry
         reject = None
-        if self.grasp_planner.needs_hull_check and isinstance(
-            self.perception, SilhouettePerception
-        ):
+        if planner.needs_hull_check and high is not None:
             # A network's regressed poses, unlike the analytic planner's, are not checked
             # against the hull; against Ŝ≥λ before its roofs were trimmed, which holds
             # the objects (the trimmed grid the network reads need not).
             reject = HullCheck(
-                self.perception.grid.high_confidence(cfg.lam) > 0,
-                self.frame,
+                high > 0,
+                frame,
                 gripper=gripper,
                 pregrasp_distance=PREGRASP_DISTANCE,
             )
@@ -287,16 +307,9 @@ class Pipeline:
                 for c in cands
                 if np.min(np.linalg.norm(failed - c.position, axis=1)) > cfg.failed_grasp_radius
             ]
-        if critic is not None and isinstance(self.perception, SilhouettePerception):
-            cands = critic.rescore(
-                cands,
-                grid,
-                self.perception.grid.high_confidence(cfg.lam),
-                self.frame,
-                self.perception.camera_positions(),
-            )
-        if self.observer is not None:
-            self.observer.candidates(cands)
+        if critic is not None and high is not None:
+            assert isinstance(self.perception, SilhouettePerception)
+            cands = critic.rescore(cands, grid, high, frame, self.perception.camera_positions())
         return cands
 
     @contextlib.contextmanager
@@ -548,8 +561,12 @@ class Pipeline:
         silhouette, so the object may end anywhere within half a voxel of that centre:
         the faces count up to one voxel (7.5 mm) too many, and a lying box whose side is
         within a voxel of the hand's opening gets no grasp (``docs/experiments.md``,
-        "Clearing the table"). The final grid is planned again by :attr:`wide_planner`
-        (the opening one voxel wider, i.e. measured at the extreme centres) and its
+        "Clearing the table"). The final grid is carved again from the phase's
+        silhouettes reaching :data:`FINE_WIDTH_MARGIN` voxels beyond the scene cube on
+        every side but the table's (an object whose origin lies in the cube may reach
+        out of it, and the planner takes no grasp whose closing touches the grid's
+        side), planned by :attr:`wide_planner` (the opening one voxel wider, i.e.
+        measured at the extreme centres), and its
         candidates, best first (the critic's order where there is one), are checked with
         the hand fully open against the phase's silhouettes carved again around each
         (:meth:`~heapgrasp.perception.silhouette.SilhouettePerception.local_input`, the
@@ -561,8 +578,17 @@ class Pipeline:
         perception = self.perception
         if not isinstance(perception, SilhouettePerception):
             return None, record
-        with self.planning_as(self.config, self.wide_planner, self.critic):
-            cands = self.grasp_candidates()
+        v = self.frame.voxel_size
+        size = self.frame.size + 2 * FINE_WIDTH_MARGIN * v
+        centre = np.asarray(self.frame.origin) + self.frame.size / 2
+        centre[2] = self.frame.origin[2] + size / 2  # the table's side stays where it is
+        grid, frame = perception.local_grid(
+            centre, size, self.frame.resolution + 2 * FINE_WIDTH_MARGIN
+        )
+        high = grid.high_confidence(self.config.lam)
+        cands = self._candidates(
+            self.wide_planner, perception.planner_input(high, frame), high, frame
+        )
         record["candidates"] = len(cands)
         gripper = self.robot.gripper.geometry
         resolution = FINE_WIDTH_DIVISOR * round(FINE_WIDTH_CUBE / self.frame.voxel_size)

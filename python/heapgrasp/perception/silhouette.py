@@ -199,14 +199,13 @@ class SilhouettePerception:
         """``Ŝ_{0-1}`` (eq. 10)."""
         return self.grid.occupancy()
 
-    def local_input(
-        self, centre: npt.ArrayLike, size: float = 0.16, resolution: int = 64
-    ) -> tuple[F32, GridFrame]:
-        """The grasp planner's input (:meth:`grasp_input`) carved again, finer, in a cube
-        of side ``size`` (m) centred at ``centre`` (world, m) at ``resolution`` voxels
-        per axis, from the phase's silhouettes (the frames of :attr:`views`); the cube is
-        kept above the table (``z >= 0``). Returns the grid and where it lies. Without
-        silhouettes kept (``roof_radius`` = 0 keeps none) the grid is empty."""
+    def local_grid(
+        self, centre: npt.ArrayLike, size: float, resolution: int
+    ) -> tuple[OccupancyGrid, GridFrame]:
+        """The phase's silhouettes (the frames of :attr:`views`) carved again into a cube
+        of side ``size`` (m) centred at ``centre`` (world, m), ``resolution`` voxels per
+        axis, kept above the table (``z >= 0``): the counts and where the cube lies.
+        Without silhouettes kept (``roof_radius`` = 0 keeps none) nothing is carved."""
         c = np.asarray(centre, dtype=np.float64).reshape(3)
         if not np.isfinite(c).all():
             raise ValueError(f"centre must be 3 finite numbers, got {centre!r}")
@@ -214,8 +213,6 @@ class SilhouettePerception:
         origin[2] = max(float(origin[2]), 0.0)
         frame = GridFrame((float(origin[0]), float(origin[1]), float(origin[2])), size, resolution)
         grid = OccupancyGrid(frame.origin, frame.size, frame.resolution)
-        if not self.views:
-            return np.zeros((resolution,) * 3, dtype=np.float32), frame
         by_camera: dict[tuple[float, ...], list[SilhouetteView]] = {}
         for v in self.views:
             cam = v.camera
@@ -227,16 +224,33 @@ class SilhouettePerception:
                 views[0].camera,
                 np.ascontiguousarray(np.stack([v.cam2world for v in views])),
             )
-        high = grid.high_confidence(self.lam)
+        return grid, frame
+
+    def local_input(
+        self, centre: npt.ArrayLike, size: float = 0.16, resolution: int = 64
+    ) -> tuple[F32, GridFrame]:
+        """The grasp planner's input (:meth:`grasp_input`) of the cube of
+        :meth:`local_grid` (a finer one, or one reaching beyond the grid), and where it
+        lies; empty without silhouettes kept."""
+        grid, frame = self.local_grid(centre, size, resolution)
+        if not self.views:
+            return np.zeros((resolution,) * 3, dtype=np.float32), frame
+        return self.planner_input(grid.high_confidence(self.lam), frame), frame
+
+    def planner_input(self, high: F32, frame: GridFrame) -> F32:
+        """``high`` (``Ŝ≥λ`` of a grid at ``frame``, e.g. of :meth:`local_grid`) as the
+        planner reads it: roofs trimmed and what the silhouettes show put back
+        (:meth:`grasp_input`)."""
         if self.roof_radius <= 0:
-            return high, frame
+            return high
         trimmed = trim_roofs(high, frame.voxel_size, self.roof_radius)
+        if self.silhouette_views == 0 or not self.views:
+            return trimmed
         n = len(self.views)
         pick = np.unique(np.linspace(0, n - 1, min(n, self.silhouette_views)).round().astype(int))
-        kept = keep_silhouettes(
+        return keep_silhouettes(
             high, trimmed, frame.origin, frame.voxel_size, [self.views[i] for i in pick]
         )
-        return kept, frame
 
     def grasp_input(self) -> F32:
         """The grasp planner's input: the high-confidence grid ``Ŝ≥λ``; when
@@ -244,21 +258,7 @@ class SilhouettePerception:
         and, when ``silhouette_views`` > 0, what the trimming cut that up to that many of
         the phase's silhouettes (evenly spaced) show to be real put back
         (:func:`~heapgrasp.perception.roofs.keep_silhouettes`)."""
-        high = self.grid.high_confidence(self.lam)
-        if self.roof_radius <= 0:
-            return high
-        trimmed = trim_roofs(high, self.grid.voxel_size, self.roof_radius)
-        if self.silhouette_views == 0 or not self.views:
-            return trimmed
-        n = len(self.views)
-        pick = np.unique(np.linspace(0, n - 1, min(n, self.silhouette_views)).round().astype(int))
-        return keep_silhouettes(
-            high,
-            trimmed,
-            self.frame.origin,
-            self.grid.voxel_size,
-            [self.views[i] for i in pick],
-        )
+        return self.planner_input(self.grid.high_confidence(self.lam), self.frame)
 
 
 def grid_agreement(measured: npt.ArrayLike, reference: npt.ArrayLike) -> dict[str, float | None]:
