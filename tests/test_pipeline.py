@@ -404,7 +404,12 @@ def test_a_lying_box_too_wide_for_the_voxel_faces_is_grasped_at_the_finer_width(
     assert outcomes[False][:2] == (StopReason.NO_CANDIDATE, ["no_candidate"])
     reason, tried, record = outcomes[True]
     assert (reason, tried) == (StopReason.CLEARED, ["success"])
-    assert record["fine_width"]["found"] and record["fine_width"]["checked"] >= 1
+    fine = record["fine_width"]
+    assert fine["found"] and fine["passes"][-1]["checked"] >= 1
+    assert fine["voxel_m"] == pytest.approx(fine["passes"][-1]["voxel_m"])
+    assert [p["voxel_m"] for p in fine["passes"]] == pytest.approx(
+        [0.0075, 0.00375][: len(fine["passes"])]
+    )
 
 
 def test_a_failed_grasp_is_not_planned_again_until_one_succeeds(tmp_path: Path) -> None:
@@ -526,10 +531,12 @@ def test_an_interrupted_run_resumes_without_losing_scenes(tmp_path: Path) -> Non
     stopped = format_summary({**summary, "early_stops": 1})
     assert f"(1 of {len(summary['phases'])} phases stopped viewing early)" in stopped
     # the phases that planned again at the finer width, counted and printed
-    assert set(summary["fine_width"]) == {"phases", "found", "held"}
+    assert set(summary["fine_width"]) == {"phases", "found", "held", "by_voxel"}
     assert "finer width" not in format_summary({**summary, "fine_width": {"phases": 0}})
     finer = format_summary({**summary, "fine_width": {"phases": 3, "found": 2, "held": 1}})
     assert "finer width: 3 phase(s) would have ended with no grasp; 2 found one" in finer
+    by_voxel = {"phases": 3, "found": 2, "held": 1, "by_voxel": {"3.75 mm": [2, 1]}}
+    assert "(found/held: 2/1 at 3.75 mm)" in format_summary({**summary, "fine_width": by_voxel})
     # Same seeds → same scenes: a fresh run of scene 0 gives the same record.
     again = run(config.replace({"scenes": 1}), None, progress=False)
     np.testing.assert_allclose(

@@ -258,8 +258,9 @@ class RunConfig:
     """Where a phase still finds no grasp after its looks again: the analytic planner
     plans once more, on the phase's silhouettes carved into a grid 6 cm wider on every
     side, measuring each grasp's opening at the extreme voxel centres rather than their
-    outer faces (one voxel wider), and a candidate is taken only when the hand, fully
-    open, clears the silhouettes carved again three times finer around it
+    outer faces (one voxel wider), first at the grid's voxel with the critic, then at
+    half of it without; a candidate is taken only when the hand, fully open, clears the
+    silhouettes carved again three times finer around it
     (:meth:`heapgrasp.loop.phase.Pipeline.fine_width_grasp`). Silhouette methods with
     the analytic planner; False: the phase ends (the paper)."""
 

@@ -86,6 +86,7 @@ __all__ = [
     "FINE_WIDTH_CUBE",
     "FINE_WIDTH_DIVISOR",
     "FINE_WIDTH_MARGIN",
+    "FINE_WIDTH_PASSES",
     "FINE_WIDTH_TRIES",
     "LOOK_AGAIN_TURNS",
     "MEMORY_TOLERANCE",
@@ -110,6 +111,9 @@ FINE_WIDTH_TRIES = 8
 #: :meth:`Pipeline.fine_width_grasp` plans on the grid grown by this many voxels on every
 #: side but the table's (6 cm at Table I's 7.5 mm).
 FINE_WIDTH_MARGIN = 8
+#: :meth:`Pipeline.fine_width_grasp`'s passes, in order: the voxel as the grid's divided
+#: by this, and whether the critic scores the candidates.
+FINE_WIDTH_PASSES = ((1, True), (2, False))
 #: Frames (evenly spaced over the phase) that check the trimmed hull against their
 #: silhouettes (:func:`heapgrasp.perception.roofs.keep_silhouettes`).
 SILHOUETTE_VIEWS = 24
@@ -255,7 +259,7 @@ class Pipeline:
             grid = self.perception.grasp_input()
         if isinstance(self.perception, SilhouettePerception):
             high = self.perception.grid.high_confidence(self.config.lam)
-        cands = self._candidates(self.grasp_planner, grid, high, self.frame)
+        cands = self._candidates(self.grasp_planner, grid, high, self.frame, self.critic)
         if self.observer is not None:
             self.observer.candidates(cands)
         return cands
@@ -266,12 +270,12 @@ class Pipeline:
         grid: npt.NDArray[np.float32],
         high: npt.NDArray[np.float32] | None,
         frame: GridFrame,
+        critic: GraspCritic | None,
     ) -> list[GraspCandidate]:
-        """:meth:`grasp_candidates` on ``grid`` at ``frame`` by ``planner``; ``high``:
-        the silhouette methods' ``Ŝ≥λ`` of the same cube (the hull check's and the
-        critic's), None for depth."""
+        """:meth:`grasp_candidates` on ``grid`` at ``frame`` by ``planner``, scored by
+        ``critic`` where there is one; ``high``: the silhouette methods' ``Ŝ≥λ`` of the
+        same cube (the hull check's and the critic's), None for depth."""
         cfg = self.config
-        critic = self.critic
         volumes = planner.predict(grid, frame)
         sigma = cfg.sigma if cfg.sigma is not None else planner.sigma
         if cfg.epsilon is not None:
@@ -560,21 +564,23 @@ class Pipeline:
         voxels, but carving keeps a voxel when its *centre* projects inside every
         silhouette, so the object may end anywhere within half a voxel of that centre:
         the faces count up to one voxel (7.5 mm) too many, and a lying box whose side is
-        within a voxel of the hand's opening gets no grasp (``docs/experiments.md``,
-        "Clearing the table"). The final grid is carved again from the phase's
-        silhouettes reaching :data:`FINE_WIDTH_MARGIN` voxels beyond the scene cube on
-        every side but the table's (an object whose origin lies in the cube may reach
-        out of it, and the planner takes no grasp whose closing touches the grid's
-        side), planned by :attr:`wide_planner` (the opening one voxel wider, i.e.
-        measured at the extreme centres), and its
-        candidates, best first (the critic's order where there is one), are checked with
-        the hand fully open against the phase's silhouettes carved again around each
-        (:meth:`~heapgrasp.perception.silhouette.SilhouettePerception.local_input`, the
-        voxel :data:`FINE_WIDTH_DIVISOR` times smaller); the first whose hand touches
-        nothing of that finer hull and closes on some of it is taken. At most
-        :data:`FINE_WIDTH_TRIES` are checked."""
+        within a voxel of the hand's opening gets no grasp; two touching objects merge
+        into one blob (``docs/experiments.md``, "Clearing the table"). The phase's
+        silhouettes are carved again into a grid reaching :data:`FINE_WIDTH_MARGIN`
+        voxels beyond the scene cube on every side but the table's (an object whose
+        origin lies in the cube may reach out of it, and the planner takes no grasp
+        whose closing touches the grid's side) and planned by :attr:`wide_planner` (the
+        opening one voxel wider, i.e. measured at the extreme centres), in two passes
+        (:data:`FINE_WIDTH_PASSES`): at the grid's voxel, scored by the critic; then,
+        where that finds nothing, at half of it, by the planner's own score (the
+        critic reads crops of the grid's voxel). Each pass's candidates, best first,
+        are checked with the hand fully open against the silhouettes carved again
+        around each (:meth:`~heapgrasp.perception.silhouette.SilhouettePerception.local_input`,
+        the voxel :data:`FINE_WIDTH_DIVISOR` times smaller than the grid's); the first
+        whose hand touches nothing of that finer hull and closes on some of it is
+        taken. At most :data:`FINE_WIDTH_TRIES` are checked per pass."""
         assert self.wide_planner is not None
-        record: dict[str, Any] = {"candidates": 0, "checked": 0, "found": False}
+        record: dict[str, Any] = {"found": False, "passes": []}
         perception = self.perception
         if not isinstance(perception, SilhouettePerception):
             return None, record
@@ -582,26 +588,32 @@ class Pipeline:
         size = self.frame.size + 2 * FINE_WIDTH_MARGIN * v
         centre = np.asarray(self.frame.origin) + self.frame.size / 2
         centre[2] = self.frame.origin[2] + size / 2  # the table's side stays where it is
-        grid, frame = perception.local_grid(
-            centre, size, self.frame.resolution + 2 * FINE_WIDTH_MARGIN
-        )
-        high = grid.high_confidence(self.config.lam)
-        cands = self._candidates(
-            self.wide_planner, perception.planner_input(high, frame), high, frame
-        )
-        record["candidates"] = len(cands)
         gripper = self.robot.gripper.geometry
-        resolution = FINE_WIDTH_DIVISOR * round(FINE_WIDTH_CUBE / self.frame.voxel_size)
-        for cand in cands[:FINE_WIDTH_TRIES]:
-            record["checked"] += 1
-            # the cube holds the fingers from the pre-grasp pose to the grasp
-            centre = cand.pose[:3, 3] - 0.5 * (PREGRASP_DISTANCE + 0.04) * cand.pose[:3, 2]
-            occ, frame = perception.local_input(centre, FINE_WIDTH_CUBE, resolution)
-            check = HullCheck(occ > 0, frame, gripper=gripper, pregrasp_distance=PREGRASP_DISTANCE)
-            if not bool(check(cand.pose[None])[0]):
-                record["found"] = True
-                record["score"] = cand.score
-                return cand, record
+        check_resolution = FINE_WIDTH_DIVISOR * round(FINE_WIDTH_CUBE / v)
+        for divisor, use_critic in FINE_WIDTH_PASSES:
+            resolution = divisor * (self.frame.resolution + 2 * FINE_WIDTH_MARGIN)
+            grid, frame = perception.local_grid(centre, size, resolution)
+            high = grid.high_confidence(self.config.lam)
+            cands = self._candidates(
+                self.wide_planner,
+                perception.planner_input(high, frame),
+                high,
+                frame,
+                self.critic if use_critic else None,
+            )
+            tried = {"voxel_m": frame.voxel_size, "candidates": len(cands), "checked": 0}
+            record["passes"].append(tried)
+            for cand in cands[:FINE_WIDTH_TRIES]:
+                tried["checked"] += 1
+                # the cube holds the fingers from the pre-grasp pose to the grasp
+                middle = cand.pose[:3, 3] - 0.5 * (PREGRASP_DISTANCE + 0.04) * cand.pose[:3, 2]
+                occ, near = perception.local_input(middle, FINE_WIDTH_CUBE, check_resolution)
+                check = HullCheck(
+                    occ > 0, near, gripper=gripper, pregrasp_distance=PREGRASP_DISTANCE
+                )
+                if not bool(check(cand.pose[None])[0]):
+                    record.update(found=True, score=cand.score, voxel_m=frame.voxel_size)
+                    return cand, record
         return None, record
 
     def _fixed_views(self, phase: _PhaseLog, turn: float = 0.0) -> None:

@@ -108,6 +108,26 @@ def leftover_summary(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def _fine_width(phases: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Phases that would have ended with no candidate and planned once more at the finer
+    width (``RunConfig.fine_width``), how many found a grasp there and how many of those
+    held, also by the voxel of the pass that found it (``"3.75 mm"``: found, held)."""
+    used = [p for p in phases if p.get("fine_width")]
+    found = [p for p in used if p["fine_width"].get("found")]
+    by_voxel: dict[str, list[int]] = {}
+    for p in found:
+        key = f"{1000 * float(p['fine_width'].get('voxel_m', 0.0)):g} mm"
+        tally = by_voxel.setdefault(key, [0, 0])
+        tally[0] += 1
+        tally[1] += p.get("outcome") == "success"
+    return {
+        "phases": len(used),
+        "found": len(found),
+        "held": sum(1 for p in found if p.get("outcome") == "success"),
+        "by_voxel": by_voxel,
+    }
+
+
 def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """``results.json``: the §VI-D metrics over every phase of every finished scene."""
     done = sorted((r for r in records if "error" not in r), key=lambda r: int(r["scene"]))
@@ -195,15 +215,7 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         # Phases that would have ended with no candidate and planned once more at the
         # finer width (RunConfig.fine_width), how many found a grasp there, and how many
         # of those held.
-        "fine_width": {
-            "phases": sum(1 for p in phase_dicts if p.get("fine_width")),
-            "found": sum(1 for p in phase_dicts if (p.get("fine_width") or {}).get("found")),
-            "held": sum(
-                1
-                for p in phase_dicts
-                if (p.get("fine_width") or {}).get("found") and p.get("outcome") == "success"
-            ),
-        },
+        "fine_width": _fine_width(phase_dicts),
         # With pixel-flip noise: Ŝ≥λ against the noise-free grid of the same frames at the
         # end of each phase (Table V), None without noise.
         "reference_grid": _reference(phase_dicts),
@@ -255,9 +267,14 @@ def format_summary(summary: dict[str, Any]) -> str:
         )
     fine = summary.get("fine_width") or {}
     if fine.get("phases"):
+        per = ", ".join(
+            f"{found}/{held} at {voxel}"
+            for voxel, (found, held) in fine.get("by_voxel", {}).items()
+        )
         lines.append(
             f"finer width: {fine['phases']} phase(s) would have ended with no grasp; "
             f"{fine['found']} found one measured finer, {fine['held']} of them held"
+            + (f" (found/held: {per})" if per else "")
         )
     ref = summary.get("reference_grid")
     if ref:
