@@ -103,8 +103,9 @@ F64 = npt.NDArray[np.float64]
 LOOK_AGAIN_TURNS = (np.pi, np.pi / 2, 3 * np.pi / 2)
 
 #: :meth:`Pipeline.fine_width_grasp`: the silhouettes are carved again in a cube of this
-#: side (m) around each candidate, with voxels this many times smaller than the grid's,
-#: for at most this many candidates.
+#: side (m; larger where the open fingers, swept from the pre-grasp pose, need it)
+#: around each candidate, with voxels this many times smaller than the grid's, for at
+#: most this many candidates.
 FINE_WIDTH_CUBE = 0.16
 FINE_WIDTH_DIVISOR = 3
 FINE_WIDTH_TRIES = 8
@@ -589,7 +590,11 @@ class Pipeline:
         centre = np.asarray(self.frame.origin) + self.frame.size / 2
         centre[2] = self.frame.origin[2] + size / 2  # the table's side stays where it is
         gripper = self.robot.gripper.geometry
-        check_resolution = FINE_WIDTH_DIVISOR * round(FINE_WIDTH_CUBE / v)
+        # the check's cube holds the fingers, open, from the pre-grasp pose to the grasp
+        low = gripper.finger_base - PREGRASP_DISTANCE
+        reach = max(gripper.finger_tip - low, gripper.max_opening + 2 * gripper.base_thickness)
+        check_size = max(FINE_WIDTH_CUBE, reach + 0.02)
+        check_resolution = FINE_WIDTH_DIVISOR * round(check_size / v)
         for divisor, use_critic in FINE_WIDTH_PASSES:
             resolution = divisor * (self.frame.resolution + 2 * FINE_WIDTH_MARGIN)
             grid, frame = perception.local_grid(centre, size, resolution)
@@ -605,9 +610,8 @@ class Pipeline:
             record["passes"].append(tried)
             for cand in cands[:FINE_WIDTH_TRIES]:
                 tried["checked"] += 1
-                # the cube holds the fingers from the pre-grasp pose to the grasp
-                middle = cand.pose[:3, 3] - 0.5 * (PREGRASP_DISTANCE + 0.04) * cand.pose[:3, 2]
-                occ, near = perception.local_input(middle, FINE_WIDTH_CUBE, check_resolution)
+                middle = cand.pose[:3, 3] + 0.5 * (low + gripper.finger_tip) * cand.pose[:3, 2]
+                occ, near = perception.local_input(middle, check_size, check_resolution)
                 check = HullCheck(
                     occ > 0, near, gripper=gripper, pregrasp_distance=PREGRASP_DISTANCE
                 )
