@@ -372,17 +372,20 @@ class ViewsphereGrasps:
         """How many distinct sets of views were synthesised (cache misses)."""
 
     # ------------------------------------------------------------------ views
+    def _image(self, image: npt.NDArray[Any], what: str) -> npt.NDArray[Any]:
+        """``image`` when it has the camera's ``(height, width)``; else a ValueError
+        naming ``what`` it is and both shapes."""
+        want = (self.camera.height, self.camera.width)
+        if image.shape != want:
+            raise ValueError(f"{what} must be {want}, got {image.shape}")
+        return image
+
     def depth(self, pose: SpherePose) -> Depth:
         """The view's depth image (rendered once)."""
         key = pose_key(pose)
         if key not in self._depth:
             d = np.asarray(self._render(pose), dtype=np.float32)
-            if d.shape != (self.camera.height, self.camera.width):
-                raise ValueError(
-                    f"a depth image must be ({self.camera.height}, {self.camera.width}), "
-                    f"got {d.shape}"
-                )
-            self._depth[key] = d
+            self._depth[key] = self._image(d, "a depth image")
         return self._depth[key]
 
     def points(self, pose: SpherePose) -> F64:
@@ -424,12 +427,7 @@ class ViewsphereGrasps:
         if key not in self._masks:
             assert self._silhouette is not None
             m = np.ascontiguousarray(self._silhouette(pose), dtype=bool)
-            if m.shape != (self.camera.height, self.camera.width):
-                raise ValueError(
-                    f"a silhouette must be ({self.camera.height}, {self.camera.width}), "
-                    f"got {m.shape}"
-                )
-            self._masks[key] = m
+            self._masks[key] = self._image(m, "a silhouette")
         return self._masks[key]
 
     def hull(self, poses: Sequence[SpherePose]) -> Hull:
