@@ -71,6 +71,51 @@ def test_transparent_object_is_invisible_to_the_depth_baseline(tmp_path: Path) -
         assert sfs.plan().grasp is not None
 
 
+TSDF_NETWORK = Path(__file__).parents[1] / "models/grasp-network-tsdf/grasp_network.onnx"
+
+
+def test_the_tsdf_networks_grasps_are_checked_against_the_measured_surfaces(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import heapgrasp.loop.phase
+    from heapgrasp.perception.depth import DepthPerception
+    from heapgrasp.planning.grasp_network import NetworkGraspPlanner
+    from heapgrasp.planning.hull_check import HullCheck
+    from heapgrasp.robot.grasping import PREGRASP_DISTANCE
+
+    model = box_model(tmp_path, BOX)
+    config = RunConfig(method="vgn", grasp_planner="network", grasp_weights=str(TSDF_NETWORK))
+    with SimWorld(ObjectLibrary([model]), seed=0) as world:
+        world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
+        pipeline = sim_pipeline(config, world)
+        assert isinstance(pipeline.grasp_planner, NetworkGraspPlanner)
+        assert pipeline.grasp_planner.input_kind == "tsdf"
+        pipeline.plan()
+        assert isinstance(pipeline.perception, DepthPerception)
+        shells = pipeline.perception.grasp_input() > 0
+        assert shells.sum() > 100  # the box's observed surfaces
+        check = HullCheck(shells, pipeline.frame, pregrasp_distance=PREGRASP_DISTANCE)
+        cands = pipeline.grasp_candidates()
+        assert cands and not check(np.stack([c.pose for c in cands])).any()
+        # Unchecked, the same network's best grasps include some that meet the surfaces
+        # (the check runs before eq. 15's NMS, so a rejected peak hides none nearby).
+        volumes = pipeline.grasp_planner.predict(pipeline.perception.tsdf_values(), pipeline.frame)
+        from heapgrasp.planning.volumes import select_candidates
+
+        unchecked = select_candidates(volumes, epsilon=0.8, sigma=1.0, nms_window=config.nms_window)
+        assert check(np.stack([c.pose for c in unchecked])).any()
+
+        class RejectAll:
+            def __init__(self, *args: object, **kwargs: object) -> None:
+                pass
+
+            def __call__(self, poses: np.ndarray) -> np.ndarray:
+                return np.ones(len(poses), dtype=bool)
+
+        monkeypatch.setattr(heapgrasp.loop.phase, "HullCheck", RejectAll)
+        assert pipeline.grasp_candidates() == []
+
+
 def test_a_phase_starts_beside_the_scene_looking_at_it(tmp_path: Path) -> None:
     model = box_model(tmp_path, BOX)
     with SimWorld(ObjectLibrary([model]), seed=0) as world:

@@ -126,8 +126,8 @@ class RunConfig:
     weights or ``view_weights``; runs on a robot), ``oracle`` (exact eq. 14 from the true
     meshes: an upper bound that needs the simulator), ``circle`` or ``hemisphere6``."""
     grasp_planner: str = _run("antipodal", "ours")
-    """``antipodal`` (analytic, no training) or ``network`` (VGN weights; for the
-    silhouette methods its grasps are checked against the hull,
+    """``antipodal`` (analytic, no training) or ``network`` (VGN weights; its grasps are
+    checked against the hull, or for ``vgn`` against the TSDF's observed shells,
     :mod:`heapgrasp.planning.hull_check`)."""
     grasp_weights: str | None = _run(None, "ours")
     """Path of the grasp network's ONNX file (``grasp_planner = "network"``)."""

@@ -260,6 +260,10 @@ class Pipeline:
             grid = self.perception.grasp_input()
         if isinstance(self.perception, SilhouettePerception):
             high = self.perception.grid.high_confidence(self.config.lam)
+        elif self.grasp_planner.needs_hull_check:
+            # The TSDF network's regressed poses are checked against what the depth
+            # measured: the surfaces' observed shells, the analytic planner's grid.
+            high = self.perception.grasp_input()
         cands = self._candidates(self.grasp_planner, grid, high, self.frame, self.critic)
         if self.observer is not None:
             self.observer.candidates(cands)
@@ -274,8 +278,9 @@ class Pipeline:
         critic: GraspCritic | None,
     ) -> list[GraspCandidate]:
         """:meth:`grasp_candidates` on ``grid`` at ``frame`` by ``planner``, scored by
-        ``critic`` where there is one; ``high``: the silhouette methods' ``Ŝ≥λ`` of the
-        same cube (the hull check's and the critic's), None for depth."""
+        ``critic`` where there is one; ``high``: the measured occupancy of the same cube
+        the hand must avoid (the hull check's; the silhouette methods' ``Ŝ≥λ``, also the
+        critic's, or the TSDF's observed shells for a depth network), None for none."""
         cfg = self.config
         volumes = planner.predict(grid, frame)
         sigma = cfg.sigma if cfg.sigma is not None else planner.sigma
@@ -313,7 +318,7 @@ class Pipeline:
                 if np.min(np.linalg.norm(failed - c.position, axis=1)) > cfg.failed_grasp_radius
             ]
         if critic is not None and high is not None:
-            assert isinstance(self.perception, SilhouettePerception)
+            assert isinstance(self.perception, SilhouettePerception)  # vgn has no critic
             cands = critic.rescore(cands, grid, high, frame, self.perception.camera_positions())
         return cands
 

@@ -23,6 +23,12 @@ hull is larger: roofs, the volume between objects no view saw into); a pose it k
 still fail for contacts outside the friction cone, which it does not judge on voxel
 faces, or close on phantom volume.
 
+The VGN baseline's TSDF network is checked the same way against what the depth
+measured: the TSDF's observed shells (``weight > 0`` and ``value <= 0``,
+:func:`heapgrasp.perception.depth.tsdf_occupancy`, the grid the analytic planner plans
+on there). They hold the surfaces the cameras saw, not the objects' insides, so a
+finger may pass through an unseen back; the fused views of the circle see most sides.
+
 The analytic planner (:mod:`heapgrasp.planning.antipodal`) makes the same collision
 check on its own lattice; :func:`~heapgrasp.planning.volumes.select_candidates` applies
 this one to a network's candidates (its ``reject`` argument).

@@ -113,7 +113,8 @@ class GraspPlanner(Protocol):
     opened to the candidate's width + 1 cm."""
     needs_hull_check: bool
     """Its poses are not checked against the grid it read (a network's regressed ones):
-    the loop checks them against the hull (:class:`~heapgrasp.planning.hull_check.HullCheck`)."""
+    the loop checks them against the hull (:class:`~heapgrasp.planning.hull_check.HullCheck`;
+    for a TSDF network, against the TSDF's observed shells)."""
 
     def predict(self, grid: F32, frame: GridFrame) -> GraspVolumes:
         """``grid``: ``(R, R, R)`` float32 input volume (the high-confidence occupancy
