@@ -81,6 +81,7 @@ def test_the_tsdf_networks_grasps_are_checked_against_the_measured_surfaces(
     from heapgrasp.perception.depth import DepthPerception
     from heapgrasp.planning.grasp_network import NetworkGraspPlanner
     from heapgrasp.planning.hull_check import HullCheck
+    from heapgrasp.planning.volumes import select_candidates
     from heapgrasp.robot.grasping import PREGRASP_DISTANCE
 
     model = box_model(tmp_path, BOX)
@@ -100,8 +101,6 @@ def test_the_tsdf_networks_grasps_are_checked_against_the_measured_surfaces(
         # Unchecked, the same network's best grasps include some that meet the surfaces
         # (the check runs before eq. 15's NMS, so a rejected peak hides none nearby).
         volumes = pipeline.grasp_planner.predict(pipeline.perception.tsdf_values(), pipeline.frame)
-        from heapgrasp.planning.volumes import select_candidates
-
         unchecked = select_candidates(volumes, epsilon=0.8, sigma=1.0, nms_window=config.nms_window)
         assert check(np.stack([c.pose for c in unchecked])).any()
 
