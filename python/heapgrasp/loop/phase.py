@@ -52,7 +52,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -74,6 +74,7 @@ from heapgrasp.perception.silhouette import SilhouettePerception, grid_agreement
 from heapgrasp.planning.critic import GraspCritic
 from heapgrasp.planning.hull_check import HullCheck
 from heapgrasp.planning.selection import select_next_waypoint, select_target, top_scoring
+from heapgrasp.planning.surface_contacts import TsdfContactCheck
 from heapgrasp.planning.views import ViewContext, ViewScorer, fixed_waypoints
 from heapgrasp.planning.volumes import GraspCandidate, GraspPlanner, select_candidates
 from heapgrasp.robot.grasping import PREGRASP_DISTANCE, Grasp, GraspOutcome
@@ -291,7 +292,7 @@ class Pipeline:
         else:
             eps = planner.epsilon
         gripper = self.robot.gripper.geometry
-        reject = None
+        reject: Callable[[npt.NDArray[np.float64]], npt.NDArray[np.bool_]] | None = None
         if planner.needs_hull_check and high is not None:
             # A network's regressed poses, unlike the analytic planner's, are not checked
             # against the hull; against Ŝ≥λ before its roofs were trimmed, which holds
@@ -302,6 +303,12 @@ class Pipeline:
                 gripper=gripper,
                 pregrasp_distance=PREGRASP_DISTANCE,
             )
+            if isinstance(self.perception, DepthPerception):
+                # The TSDF's normals also judge the contacts the shells' faces cannot.
+                tsdf = self.perception.tsdf
+                reject = _either(
+                    reject, TsdfContactCheck(tsdf.values(), tsdf.weights(), frame, gripper=gripper)
+                )
         cands = select_candidates(
             volumes,
             epsilon=float(eps),
@@ -785,3 +792,20 @@ class Pipeline:
             compute_time=phase.compute,
             extra=extra,
         )
+
+
+def _either(
+    first: Callable[[npt.NDArray[np.float64]], npt.NDArray[np.bool_]],
+    second: Callable[[npt.NDArray[np.float64]], npt.NDArray[np.bool_]],
+) -> Callable[[npt.NDArray[np.float64]], npt.NDArray[np.bool_]]:
+    """A grasp check rejecting what ``first`` or ``second`` rejects; ``second`` judges
+    only the poses ``first`` kept."""
+
+    def check(poses: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+        out = np.asarray(first(poses), dtype=bool).copy()
+        kept = ~out
+        if kept.any():
+            out[kept] = second(poses[kept])
+        return out
+
+    return check
