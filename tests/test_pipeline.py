@@ -71,9 +71,6 @@ def test_transparent_object_is_invisible_to_the_depth_baseline(tmp_path: Path) -
         assert sfs.plan().grasp is not None
 
 
-TSDF_NETWORK = Path(__file__).parents[1] / "models/grasp-network-tsdf/grasp_network.onnx"
-
-
 def test_the_tsdf_networks_grasps_are_checked_against_the_measured_surfaces(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -85,7 +82,7 @@ def test_the_tsdf_networks_grasps_are_checked_against_the_measured_surfaces(
     from heapgrasp.robot.grasping import PREGRASP_DISTANCE
 
     model = box_model(tmp_path, BOX)
-    config = RunConfig(method="vgn", grasp_planner="network", grasp_weights=str(TSDF_NETWORK))
+    config = RunConfig(method="vgn", grasp_planner="network")  # the shipped TSDF network
     with SimWorld(ObjectLibrary([model]), seed=0) as world:
         world.reset(layout="packed", n_objects=1, category="opaque", seed=0, models=[model])
         pipeline = sim_pipeline(config, world)

@@ -293,6 +293,7 @@ def test_the_shipped_grasp_networks_grasps_are_checked_against_the_hull(
 
     monkeypatch.setattr(heapgrasp.loop.phase, "HullCheck", RejectAll)
     assert pipeline.grasp_candidates() == []
-    # The VGN baseline reads TSDFs, for which no network ships.
-    with pytest.raises(ConfigError, match="no grasp network for tsdf grids ships"):
-        make_grasp_planner(RunConfig(method="vgn", grasp_planner="network"))
+    # The VGN baseline reads TSDFs: its own shipped network.
+    tsdf = make_grasp_planner(RunConfig(method="vgn", grasp_planner="network"))
+    assert isinstance(tsdf, NetworkGraspPlanner) and tsdf.input_kind == "tsdf"
+    assert tsdf.network.path.name == "grasp_network_tsdf.onnx"
