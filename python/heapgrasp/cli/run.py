@@ -82,12 +82,13 @@ def add_parser(
         "--grasp-planner",
         choices=GRASP_PLANNERS,
         help="grasp planner (default antipodal: analytic, needs no training; network: the "
-        "grasp network of eq. 11, its grasps checked against the hull)",
+        "grasp network of eq. 11, its grasps checked against the hull, or for vgn VGN's "
+        "network on the TSDF, checked against the TSDF)",
     )
     p.add_argument(
         "--grasp-weights",
         help="grasp-network weights file (--grasp-planner network; default: the shipped "
-        "occupancy network; the vgn method needs a TSDF network's file)",
+        "occupancy network, or for vgn the shipped TSDF network)",
     )
     p.add_argument("--view-weights", help="view-network weights file (--view-planner network)")
     p.add_argument("--layout", choices=LAYOUTS, help="scene layout (default pile)")
