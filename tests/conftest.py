@@ -99,3 +99,14 @@ def box_model(
         split="test",
         extents=extents,
     )
+
+
+class RejectEveryGrasp:
+    """A grasp check (``HullCheck``'s signature) that rejects every pose: patched over
+    the loop's checks, it must leave the loop no candidate."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        pass
+
+    def __call__(self, poses: np.ndarray) -> np.ndarray:
+        return np.ones(len(poses), dtype=bool)

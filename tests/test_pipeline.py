@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import box_model
+from conftest import RejectEveryGrasp, box_model
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.phase import MEMORY_TOLERANCE, SILHOUETTE_VIEWS
 from heapgrasp.loop.protocol import PlanResult, StopReason, run_clutter_removal
@@ -101,14 +101,7 @@ def test_the_tsdf_networks_grasps_are_checked_against_the_measured_surfaces(
         unchecked = select_candidates(volumes, epsilon=0.8, sigma=1.0, nms_window=config.nms_window)
         assert check(np.stack([c.pose for c in unchecked])).any()
 
-        class RejectAll:
-            def __init__(self, *args: object, **kwargs: object) -> None:
-                pass
-
-            def __call__(self, poses: np.ndarray) -> np.ndarray:
-                return np.ones(len(poses), dtype=bool)
-
-        monkeypatch.setattr(heapgrasp.loop.phase, "HullCheck", RejectAll)
+        monkeypatch.setattr(heapgrasp.loop.phase, "HullCheck", RejectEveryGrasp)
         assert pipeline.grasp_candidates() == []
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import RejectEveryGrasp
 from fake_robot import FakeRobot, FakeScene, FakeTruth, RedSegmenter
 from heapgrasp.loop.config import ConfigError, RunConfig
 from heapgrasp.loop.stages import build_pipeline
@@ -284,14 +285,7 @@ def test_the_shipped_grasp_networks_grasps_are_checked_against_the_hull(
     # A check that rejects everything leaves the loop no candidate.
     import heapgrasp.loop.phase
 
-    class RejectAll:
-        def __init__(self, *args: object, **kwargs: object) -> None:
-            pass
-
-        def __call__(self, poses: np.ndarray) -> np.ndarray:
-            return np.ones(len(poses), dtype=bool)
-
-    monkeypatch.setattr(heapgrasp.loop.phase, "HullCheck", RejectAll)
+    monkeypatch.setattr(heapgrasp.loop.phase, "HullCheck", RejectEveryGrasp)
     assert pipeline.grasp_candidates() == []
     # The VGN baseline reads TSDFs: its own shipped network.
     tsdf = make_grasp_planner(RunConfig(method="vgn", grasp_planner="network"))
