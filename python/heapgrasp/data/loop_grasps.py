@@ -20,7 +20,8 @@ index, so a shard re-run is identical):
    feeds it; ``tsdf`` for ``method = "vgn"``), and its grasps:
 
    - the network's top ``top`` candidates through the loop's own selection (eq. 15's
-     smoothing, ε and NMS, the hull check, the failed-grasp memory), each labelled by
+     smoothing, ε and NMS, the hull check, for ``tsdf`` also the contact check of
+     :mod:`heapgrasp.planning.surface_contacts`, the failed-grasp memory), each labelled by
      the exact labeller (:func:`heapgrasp.sim.grasp_labels.labeller`, fingers fully
      open), kept whatever the label: the grasps the loop would execute;
    - VGN's grasps at ``points`` points of the surface the grid shows, balanced, as
