@@ -38,6 +38,22 @@ def test_each_phase_ranks_every_planner_on_the_same_grid() -> None:
         assert summary[name]["labelled@1"] == len(labels)
 
 
+def test_the_vgn_baseline_ranks_on_its_tsdf_and_takes_no_critic(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = TopKConfig(scenes=1, objects=2, method="vgn", planners=("antipodal", "network"))
+    record = run_scene(config, 0)
+    assert record["phases"], record
+    for phase in record["phases"]:
+        assert set(phase["rankings"]) == {"antipodal", "network"}
+    argv = ["bench", "topk", "--scenes", "1", "--method", "vgn", "--quiet"]
+    out = tmp_path / "critic"
+    assert main([*argv, "--planners", "antipodal+critic", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "antipodal+critic" in err and "silhouette method" in err
+    assert not out.exists()  # refused before anything is written
+
+
 def test_the_command_writes_its_table_and_refuses_bad_settings(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -5,8 +5,9 @@ An offline score of a grasp network (its AP over a dataset's grids and grasps) n
 predict what the loop does with it: the loop takes the network's *best* grasps, on the
 grids *its own* views carve. This benchmark measures exactly that. For ``--scenes``
 seeded scenes (seed ``seed + i``, test split) the clutter-removal protocol runs as
-``heapgrasp run`` runs it (``--method``'s views; the run's default grasp planner, the
-*driver*, decides what is executed, so the scenes evolve as a run's do). At every phase,
+``heapgrasp run`` runs it (``--method``'s views and grid: ``vgn`` ranks on the depth
+sensor's TSDF, without a critic; the run's default grasp planner, the *driver*, decides
+what is executed, so the scenes evolve as a run's do). At every phase,
 on the grid the phase planned its grasp from, each planner of ``--planners`` proposes
 its candidates through the loop's own selection
 (:meth:`~heapgrasp.loop.phase.Pipeline.grasp_candidates`: eq. 15's smoothing, threshold
@@ -52,6 +53,7 @@ __all__ = [
     "TopKConfig",
     "evaluate_phase",
     "figure_reliability",
+    "planner_configs",
     "reliability",
     "run",
     "run_bench",
@@ -124,18 +126,27 @@ def evaluate_phase(
     return out
 
 
+def planner_configs(config: TopKConfig, base: RunConfig) -> dict[str, RunConfig]:
+    """Each ranked planner's settings: ``base`` with :data:`PLANNERS`' changes; a
+    :class:`ConfigError` naming the planner where they do not apply (a critic for
+    ``vgn``)."""
+    out = {}
+    for name in config.planners:
+        try:
+            out[name] = base.replace(PLANNERS[name], source=f"planner {name}")
+        except ConfigError as exc:
+            raise ConfigError(f"--planners {name}: {exc}") from None
+    return out
+
+
 def _rankers(config: TopKConfig, base: RunConfig) -> dict[str, tuple[RunConfig, Any, Any]]:
     from heapgrasp.geometry.gripper import PANDA_HAND
     from heapgrasp.loop.stages import make_critic, make_grasp_planner
 
-    out = {}
-    for name in config.planners:
-        try:
-            cfg = base.replace(PLANNERS[name], source=f"planner {name}")
-        except ConfigError as exc:
-            raise ConfigError(f"--planners {name}: {exc}") from None
-        out[name] = (cfg, make_grasp_planner(cfg, PANDA_HAND), make_critic(cfg))
-    return out
+    return {
+        name: (cfg, make_grasp_planner(cfg, PANDA_HAND), make_critic(cfg))
+        for name, cfg in planner_configs(config, base).items()
+    }
 
 
 def run_scene(config: TopKConfig, index: int) -> dict[str, Any]:
@@ -345,7 +356,7 @@ def run(args: argparse.Namespace) -> int:
             planners=tuple(args.planners),
             changes=parse_sets(args.set or []),
         )
-        config.run_config()  # settings checked before any scene
+        planner_configs(config, config.run_config())  # settings checked before any scene
     except ConfigError as exc:
         print(f"heapgrasp bench topk: {exc}", file=sys.stderr)
         return 2

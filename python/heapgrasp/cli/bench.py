@@ -331,9 +331,10 @@ def add_topk(subparsers: SubParsers) -> argparse.ArgumentParser:
     p.add_argument("--objects", type=int_at_least(1), default=5, metavar="N")
     p.add_argument(
         "--method",
-        choices=("heapgrasp", "no-vp"),
+        choices=("heapgrasp", "no-vp", "vgn"),
         default="heapgrasp",
-        help="whose views carve the grids (default heapgrasp)",
+        help="whose views carve the grids (default heapgrasp; vgn: the depth sensor's TSDF, "
+        "whose planners take no critic)",
     )
     p.add_argument(
         "--planners",
