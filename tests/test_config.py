@@ -35,6 +35,7 @@ def test_defaults_are_table_one() -> None:
         ({"objects": 2.5}, "objects must be of type int"),
         ({"radius": -0.3}, "radius: must be > 0"),
         ({"start": "below"}, "start: must be one of side, above; got 'below'"),
+        ({"grasp_planner": "vgn"}, "grasp_planner: must be one of auto, antipodal, network"),
         ({"noise": 0.7}, "noise: must be in"),
         ({"epsilon": float("nan")}, "epsilon"),
         ({"roof_radius": float("inf")}, "roof_radius: must be in"),
@@ -246,3 +247,31 @@ def test_files_are_stored_as_absolute_paths(
     assert c.grasp_critic == str(tmp_path / "c.onnx")
     assert RunConfig(grasp_critic="auto").grasp_critic == "auto"
     assert RunConfig.from_mapping(c.to_dict()) == c  # read back unchanged
+
+
+def test_auto_grasp_planner_is_vgns_network_for_vgn_and_analytic_elsewhere() -> None:
+    # issue 58: the VGN baseline runs VGN's network (on the TSDF, checked) by default;
+    # the silhouette methods keep the analytic planner with the critic
+    from heapgrasp.loop.stages import make_grasp_planner
+    from heapgrasp.planning.antipodal import AntipodalPlanner
+    from heapgrasp.planning.grasp_network import NetworkGraspPlanner
+
+    assert RunConfig().grasp_planner == "auto"
+    uses = {m: RunConfig(method=m) for m in ("heapgrasp", "no-vp", "hemisphere6", "vgn")}
+    assert {m: c.grasp_planner_in_use for m, c in uses.items()} == {
+        "heapgrasp": "antipodal",
+        "no-vp": "antipodal",
+        "hemisphere6": "antipodal",
+        "vgn": "network",
+    }
+    assert uses["heapgrasp"].critic == "default" and uses["vgn"].critic is None
+    vgn = make_grasp_planner(uses["vgn"])
+    assert isinstance(vgn, NetworkGraspPlanner) and vgn.input_kind == "tsdf"
+    assert isinstance(make_grasp_planner(uses["no-vp"]), AntipodalPlanner)
+    # an explicit choice wins, for either
+    analytic = RunConfig(method="vgn", grasp_planner="antipodal")
+    assert analytic.grasp_planner_in_use == "antipodal"
+    assert isinstance(make_grasp_planner(analytic), AntipodalPlanner)
+    assert RunConfig(grasp_planner="network").critic is None
+    # the resolved choice follows a later change of method
+    assert uses["heapgrasp"].replace({"method": "vgn"}).grasp_planner_in_use == "network"

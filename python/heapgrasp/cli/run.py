@@ -80,10 +80,11 @@ def add_parser(
     )
     p.add_argument(
         "--grasp-planner",
-        choices=GRASP_PLANNERS,
-        help="grasp planner (default antipodal: analytic, needs no training; network: the "
-        "grasp network of eq. 11, its grasps checked against the hull, or for vgn VGN's "
-        "network on the TSDF, checked against the TSDF)",
+        choices=("auto", *GRASP_PLANNERS),
+        help="grasp planner (default auto: the analytic planner for heapgrasp, no-vp and "
+        "hemisphere6, VGN's network for vgn; antipodal: analytic, needs no training; "
+        "network: the grasp network of eq. 11, its grasps checked against the hull, or for "
+        "vgn VGN's network on the TSDF, checked against the TSDF)",
     )
     p.add_argument(
         "--grasp-weights",

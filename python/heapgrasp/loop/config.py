@@ -125,10 +125,12 @@ class RunConfig:
     """View planner of ``heapgrasp``: ``network`` (the view network of eq. 13, the shipped
     weights or ``view_weights``; runs on a robot), ``oracle`` (exact eq. 14 from the true
     meshes: an upper bound that needs the simulator), ``circle`` or ``hemisphere6``."""
-    grasp_planner: str = _run("antipodal", "ours")
-    """``antipodal`` (analytic, no training) or ``network`` (VGN weights; its grasps are
+    grasp_planner: str = _run("auto", "ours")
+    """``antipodal`` (analytic, no training), ``network`` (VGN weights; its grasps are
     checked against the hull, or for ``vgn`` against the TSDF's observed shells,
-    :mod:`heapgrasp.planning.hull_check`)."""
+    :mod:`heapgrasp.planning.hull_check`) or ``auto``: the network for ``vgn`` (VGN's
+    own planner, §VI-B), the analytic planner for the silhouette methods (see
+    :attr:`grasp_planner_in_use`)."""
     grasp_weights: str | None = _run(None, "ours")
     """Path of the grasp network's ONNX file (``grasp_planner = "network"``)."""
     view_weights: str | None = _run(None, "ours")
@@ -280,7 +282,7 @@ class RunConfig:
 
         choice("method", METHODS)
         choice("view_planner", VIEW_PLANNERS)
-        choice("grasp_planner", GRASP_PLANNERS)
+        choice("grasp_planner", ("auto", *GRASP_PLANNERS))
         # The form only: heapgrasp.training.resolve_device checks the device against
         # PyTorch when a network is built (this module does not import PyTorch).
         if not (
@@ -421,6 +423,18 @@ class RunConfig:
                 raise ConfigError(f"{name}: must be <= {most_f:g}; got {getattr(self, name)!r}")
 
     @property
+    def grasp_planner_in_use(self) -> str:
+        """The grasp planner this run uses (one of :data:`GRASP_PLANNERS`):
+        ``grasp_planner = "auto"`` resolves to ``network`` for ``vgn``, whose baseline is
+        VGN's network on the TSDF, and to ``antipodal`` for the silhouette methods, where
+        the analytic planner with the critic holds more grasps than the occupancy network
+        (docs/benchmarks.md, "Closed loop: the grasp networks against the analytic
+        planner")."""
+        if self.grasp_planner == "auto":
+            return "network" if self.method == "vgn" else "antipodal"
+        return self.grasp_planner
+
+    @property
     def critic(self) -> str | None:
         """The critic this run uses: ``"default"`` (the shipped weights), a file path, or
         None. ``grasp_critic = "auto"`` resolves to the shipped weights for a silhouette
@@ -428,7 +442,7 @@ class RunConfig:
         if self.grasp_critic == "none":
             return None
         if self.grasp_critic == "auto":
-            applies = self.method != "vgn" and self.grasp_planner == "antipodal"
+            applies = self.method != "vgn" and self.grasp_planner_in_use == "antipodal"
             return "default" if applies else None
         return self.grasp_critic
 

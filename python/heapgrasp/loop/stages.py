@@ -113,7 +113,7 @@ def make_wide_planner(
     """``RunConfig.fine_width``'s second planner: the analytic planner measuring openings
     at the extreme voxel centres (the opening it may use one grid voxel wider), for a
     silhouette method whose planner is the analytic one; None elsewhere."""
-    if not config.fine_width or config.grasp_planner != "antipodal":
+    if not config.fine_width or config.grasp_planner_in_use != "antipodal":
         return None
     if method_of(config).depth:
         return None
@@ -126,7 +126,7 @@ def make_wide_planner(
 def make_grasp_planner(config: RunConfig, gripper: GripperGeometry = PANDA_HAND) -> GraspPlanner:
     """The configured grasp planner (``antipodal`` or ``network``); the analytic one plans
     for ``gripper`` (its shape and widest opening)."""
-    if config.grasp_planner == "antipodal":
+    if config.grasp_planner_in_use == "antipodal":
         from heapgrasp.planning.antipodal import AntipodalPlanner
 
         return AntipodalPlanner(max_opening=gripper.max_opening, gripper=gripper)

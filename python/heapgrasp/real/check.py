@@ -43,7 +43,8 @@ def check(config_path: str | Path, *, drivers: Drivers | None = None) -> list[di
     def settings() -> str:
         _, cfg = load(config_path, simulated=d.scene is not None)
         loaded["cfg"] = cfg
-        return f"method {cfg.method}, view planner {cfg.view_planner}, grasps {cfg.grasp_planner}"
+        grasps = cfg.grasp_planner_in_use
+        return f"method {cfg.method}, view planner {cfg.view_planner}, grasps {grasps}"
 
     items.append(_item("settings", settings))
 

@@ -23,7 +23,7 @@ __all__ = ["format_summary", "leftover_summary", "method_label", "summarize"]
 
 def method_label(config: RunConfig) -> str:
     """A run's method as one line: the method, its views, its grasps and critic."""
-    grasps = f"{config.grasp_planner} grasps"
+    grasps = f"{config.grasp_planner_in_use} grasps"
     critic = config.critic
     if critic == "default":
         grasps += ", critic"
@@ -181,7 +181,7 @@ def summarize(config: RunConfig, records: Sequence[dict[str, Any]]) -> dict[str,
         "method": config.method,
         "label": method_label(config),
         "view_planner": method_of(config).view_planner,
-        "grasp_planner": config.grasp_planner,
+        "grasp_planner": config.grasp_planner_in_use,
         **metrics,
         # 95 % Wilson interval of the success rate, in percent (heapgrasp.results.stats).
         "grasp_success_ci95": [100 * x for x in success_interval(k, n)] if n else None,
