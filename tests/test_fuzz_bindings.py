@@ -375,6 +375,17 @@ def same_array(x: Any, a: np.ndarray) -> bool:
     return bool(np.array_equal(x, a, equal_nan=a.dtype.kind in "fc"))
 
 
+def valid_cloud(x: Any) -> bool:
+    """Whether ``x`` is a point cloud the bindings must accept: a borrowable float64
+    ``(m, 3)`` array of finite values, ``m`` ≥ 0."""
+    return (
+        borrowable(x, [np.float64])
+        and x.ndim == 2
+        and x.shape[1] == 3
+        and bool(np.isfinite(x).all())
+    )
+
+
 def maybe_array(a: np.ndarray, bad: bool = True) -> st.SearchStrategy[tuple[Any, bool]]:
     """``(x, same)``: ``a`` (C-contiguous) itself unless ``bad``, else a variant of it or a
     non-array object; ``same``: ``x`` is ``a`` to the bindings, a borrowable array of
@@ -1701,6 +1712,10 @@ def test_hand_point_counts(data):
     if not ok(out):
         assert plan.bad, "a valid call was refused"
         return
+    if not points_same and valid_cloud(points):
+        # A variant that is itself a valid cloud (an empty one, a reshape to (m, 3)): the
+        # call must count against that cloud.
+        pts, points_same = points, True
     assert poses_valid and openings_same and points_same
     assert out.dtype == np.uint32 and out.shape == (len(poses),)
     again = _core.hand_point_counts(
