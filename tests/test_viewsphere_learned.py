@@ -85,6 +85,33 @@ def test_a_policy_file_runs_and_takes_its_best_valid_direction(tmp_path: Path):
     assert policy.choose(ViewState(low, (low,), 0, lambda p: (obj, obj))) != DIRECTIONS.index("S")
 
 
+def test_a_policy_does_not_step_back_onto_a_view_it_has_taken(tmp_path: Path):
+    # Its state holds no history: scored alone, it would go back and forth (N, S, N, …).
+    north, south = DIRECTIONS.index("N"), DIRECTIONS.index("S")
+    w = np.zeros((8, N_FEATURES))
+    b = np.arange(8, dtype=float)  # the last directions score best …
+    b[south], b[north] = 10.0, 9.0  # … and S best of all, then N
+    path = tmp_path / "p.onnx"
+    path.write_bytes(policy_onnx([(w, b)], hparams={"model": "pca-lr"}, provenance={}))
+    policy = LearnedPolicy.from_file(path, SCORER)
+    obj = np.random.default_rng(1).uniform(-0.03, 0.03, (100, 3)) + np.array([0, 0, 0.04])
+    start = SpherePose(0.0, 0.5)
+    _, below = SPHERE.move(start, south)
+    # Fresh, it steps south; having come from the south, it does not step back there.
+    assert policy.choose(ViewState(start, (start,), 0, lambda p: (obj, obj))) == south
+    back = ViewState(start, (below, start), 1, lambda p: (obj, obj))
+    assert policy.choose(back) == north  # the next-best, a new view
+    # The same from below the start: N (back to it) would be best, S is the new best.
+    b[north], b[south] = 10.0, 9.0
+    path.write_bytes(policy_onnx([(w, b)], hparams={"model": "pca-lr"}, provenance={}))
+    policy = LearnedPolicy.from_file(path, SCORER)
+    went = ViewState(below, (start, below), 1, lambda p: (obj, obj))
+    assert policy.choose(went) == south
+    # Where every step returns to a view taken, it still moves: the best of them.
+    ring = tuple(SPHERE.move(below, d)[1] for d in range(8))
+    assert policy.choose(ViewState(below, (*ring, below), 8, lambda p: (obj, obj))) == north
+
+
 def test_bad_policy_layers_and_files_are_refused(tmp_path: Path):
     with pytest.raises(ValueError, match="8 scores"):
         policy_onnx([(np.zeros((4, N_FEATURES)), np.zeros(4))], hparams={}, provenance={})

@@ -21,7 +21,7 @@ hidden layers of 128 and its 8 Q-values. Building a file needs the ``onnx`` pack
 (``pip install 'heapgrasp[train]'``); running one needs onnxruntime only.
 
 :class:`LearnedPolicy` takes the best-scoring direction whose step does not fall back
-onto another's.
+onto another's and does not return to a view already taken.
 """
 
 from __future__ import annotations
@@ -241,6 +241,17 @@ class LearnedPolicy:
         return out
 
     def choose(self, state: ViewState) -> int:
+        """The best-scoring direction whose step neither falls back onto another's nor
+        returns to a view already taken (within half a step of one: it would add nothing
+        the fused state lacks, and a state without the views' history cannot tell); where
+        every step returns, the best of them."""
         scores = self.scores(state)
-        valid = [d for d, _ in self.scorer.next_views(state.pose)] or list(range(len(DIRECTIONS)))
+        steps = self.scorer.next_views(state.pose)
+        sphere = self.scorer.sphere
+        fresh = [
+            d
+            for d, nxt in steps
+            if all(sphere.arc(nxt, seen) >= 0.5 * sphere.step for seen in state.visited)
+        ]
+        valid = fresh or [d for d, _ in steps] or list(range(len(DIRECTIONS)))
         return max(valid, key=lambda d: (float(scores[d]), -d))
