@@ -34,7 +34,7 @@ import textwrap
 from pathlib import Path
 from typing import TypeAlias
 
-from heapgrasp.cli.argtypes import add_ray_argument, comma_choices, int_at_least
+from heapgrasp.cli.argtypes import add_ray_argument, comma_choices, float_in, int_at_least
 from heapgrasp.cli.datasets import dataset_parser, generate_command, section
 from heapgrasp.cli.training import config_error
 
@@ -56,6 +56,9 @@ def _data(args: argparse.Namespace) -> int:
         prefix_steps=args.prefix_steps,
         procedural=args.procedural,
         bfs_max_sets=args.bfs_max_sets,
+        start=args.start,
+        prefix_policy=args.prefix_policy,
+        prefix_epsilon=args.prefix_epsilon,
     )
 
 
@@ -219,7 +222,8 @@ def add_bench(sub: SubParsers, name: str = "bench") -> argparse.ArgumentParser:
 
 def add_data(sub: SubParsers, name: str = "data") -> argparse.ArgumentParser:
     """Adds ``viewsphere data`` (under ``name``)."""
-    from heapgrasp.viewsphere.data import LABELS, SUPERVISED_OBJECTS
+    from heapgrasp.viewsphere.data import LABELS, STARTS, SUPERVISED_OBJECTS
+    from heapgrasp.viewsphere.learned import MODELS
     from heapgrasp.viewsphere.objects import TRAIN_OBJECTS
 
     p = dataset_parser(
@@ -272,6 +276,28 @@ def add_data(sub: SubParsers, name: str = "data") -> argparse.ArgumentParser:
         default=300,
         help="with --labels bfs: syntheses per state, at most; a state whose search finds "
         "nothing within them is dropped (default 300; two levels take about 60)",
+    )
+    p.add_argument(
+        "--start",
+        choices=STARTS,
+        default="random",
+        help="random: a random pose on the viewsphere; protocol: the benchmark's start "
+        "pose, every episode's first view (default random)",
+    )
+    p.add_argument(
+        "--prefix-policy",
+        default="",
+        metavar="MODEL|FILE",
+        help="with --labels bfs and --prefix-steps: a learned policy ("
+        + ", ".join(MODELS)
+        + " for the shipped file, or a policy file) makes the moves before the state, so "
+        "the states it meets are labelled (DAgger; default: random moves)",
+    )
+    p.add_argument(
+        "--prefix-epsilon",
+        type=float_in(0.0, 1.0),
+        default=0.25,
+        help="with --prefix-policy: the chance that a move is random instead (default 0.25)",
     )
     p.add_argument(
         "--procedural",
