@@ -296,6 +296,21 @@ def test_prefix_policy_settings_are_checked():
     assert len(shipped.identity()["prefix_policy_sha256"]) == 64
 
 
+def test_the_data_command_names_a_bad_prefix_policy(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from heapgrasp.cli import main
+
+    out = tmp_path / "d"
+    argv = ["viewsphere", "data", str(out), "--labels", "bfs", "--prefix-steps", "1"]
+    assert main([*argv, "--prefix-policy", "nowhere.onnx"]) == 2
+    err = capsys.readouterr().err
+    assert "heapgrasp: error: prefix_policy 'nowhere.onnx' is neither a policy file" in err
+    assert not out.exists()
+    assert main([*argv, "--prefix-epsilon", "2"]) == 2
+    assert "--prefix-epsilon" in capsys.readouterr().err
+
+
 def test_the_paths_config_keeps_test_objects_out_of_training():
     with pytest.raises(ValueError, match="003_cracker_box"):
         vp.ViewspherePathsConfig(objects=("003_cracker_box",))
