@@ -15,7 +15,13 @@ learned policies.
 Every scene puts a training prism at a random yaw, starts the camera at a random pose
 and explores randomly, three paths of up to five moves per direction; the label is the
 first direction of the shortest path that found a grasp
-(:mod:`heapgrasp.viewsphere.data`).
+(:mod:`heapgrasp.viewsphere.data`). Beyond the paper, ``--labels bfs`` labels every
+optimal first move by breadth-first search, and ``--start protocol --prefix-policy
+imitation`` labels the states a learned policy meets from the benchmark's start view
+(DAgger)::
+
+    heapgrasp viewsphere data runs/vs-dagger --scenes 3000 --labels bfs --prefix-steps 3 \\
+        --start protocol --prefix-policy imitation
 
 ``heapgrasp viewsphere train``: one of the learned policies (PCA + LR / LDA on those
 datasets, or the DQN by playing episodes; :mod:`heapgrasp.viewsphere.training`)::
