@@ -252,65 +252,6 @@ def test_bfs_labels_are_every_first_move_of_a_shortest_path():
     assert vp.optimal_first_moves(world, [start], max_steps=3, max_sets=1) in (None, best)
 
 
-def test_a_prefix_policy_makes_the_moves_from_the_protocols_start(tmp_path: Path):
-    # A policy that always goes east, never at random: a state after n prefix moves is
-    # n steps east of the benchmark's start pose.
-    east = DIRECTIONS.index("E")
-    path = tmp_path / "east.onnx"
-    path.write_bytes(_one_hot_policy(east))
-    config = vp.ViewspherePathsConfig(
-        objects=("prism_6x6x6", "prism_20x6x5"),
-        labels="bfs",
-        prefix_steps=2,
-        bfs_max_sets=20,
-        start="protocol",
-        prefix_policy=str(path),
-        prefix_epsilon=0.0,
-    )
-    config_start = vp.ViewsphereConfig().start
-    samples = [s for s in (vp.scene_sample(config, i) for i in range(8)) if s is not None]
-    assert samples, "no scene of 8 kept"
-    for s in samples:
-        pose = config_start
-        for _ in range(s["prefix"]):
-            pose = SPHERE.move(pose, east)[1]
-        assert s["start"] == pytest.approx((pose.azimuth, pose.polar))
-    assert any(s["prefix"] > 0 for s in samples), "no state after a prefix move"
-    # The file's digest is part of the dataset's identity: other weights, another dataset.
-    digest = config.identity()["prefix_policy_sha256"]
-    path.write_bytes(_one_hot_policy(DIRECTIONS.index("W")))
-    assert config.identity()["prefix_policy_sha256"] != digest
-    assert "prefix_policy_sha256" not in vp.ViewspherePathsConfig().identity()
-
-
-def test_prefix_policy_settings_are_checked():
-    with pytest.raises(ValueError, match="start must be one of random, protocol"):
-        vp.ViewspherePathsConfig(start="north")
-    with pytest.raises(ValueError, match="prefix_epsilon must be a number in"):
-        vp.ViewspherePathsConfig(prefix_epsilon=1.5)
-    with pytest.raises(ValueError, match="prefix_policy needs labels='bfs'"):
-        vp.ViewspherePathsConfig(prefix_policy="imitation")
-    with pytest.raises(ValueError, match=r"'nowhere\.onnx' is neither a policy file"):
-        vp.ViewspherePathsConfig(labels="bfs", prefix_steps=1, prefix_policy="nowhere.onnx")
-    shipped = vp.ViewspherePathsConfig(labels="bfs", prefix_steps=1, prefix_policy="imitation")
-    assert len(shipped.identity()["prefix_policy_sha256"]) == 64
-
-
-def test_the_data_command_names_a_bad_prefix_policy(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    from heapgrasp.cli import main
-
-    out = tmp_path / "d"
-    argv = ["viewsphere", "data", str(out), "--labels", "bfs", "--prefix-steps", "1"]
-    assert main([*argv, "--prefix-policy", "nowhere.onnx"]) == 2
-    err = capsys.readouterr().err
-    assert "heapgrasp: error: prefix_policy 'nowhere.onnx' is neither a policy file" in err
-    assert not out.exists()
-    assert main([*argv, "--prefix-epsilon", "2"]) == 2
-    assert "--prefix-epsilon" in capsys.readouterr().err
-
-
 def test_the_paths_config_keeps_test_objects_out_of_training():
     with pytest.raises(ValueError, match="003_cracker_box"):
         vp.ViewspherePathsConfig(objects=("003_cracker_box",))

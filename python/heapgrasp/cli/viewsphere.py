@@ -15,13 +15,7 @@ learned policies.
 Every scene puts a training prism at a random yaw, starts the camera at a random pose
 and explores randomly, three paths of up to five moves per direction; the label is the
 first direction of the shortest path that found a grasp
-(:mod:`heapgrasp.viewsphere.data`). Beyond the paper, ``--labels bfs`` labels every
-optimal first move by breadth-first search, and ``--start protocol --prefix-policy
-imitation`` labels the states a learned policy meets from the benchmark's start view
-(DAgger)::
-
-    heapgrasp viewsphere data runs/vs-dagger --scenes 3000 --labels bfs --prefix-steps 3 \\
-        --start protocol --prefix-policy imitation
+(:mod:`heapgrasp.viewsphere.data`).
 
 ``heapgrasp viewsphere train``: one of the learned policies (PCA + LR / LDA on those
 datasets, or the DQN by playing episodes; :mod:`heapgrasp.viewsphere.training`)::
@@ -40,7 +34,7 @@ import textwrap
 from pathlib import Path
 from typing import TypeAlias
 
-from heapgrasp.cli.argtypes import add_ray_argument, comma_choices, float_in, int_at_least
+from heapgrasp.cli.argtypes import add_ray_argument, comma_choices, int_at_least
 from heapgrasp.cli.datasets import dataset_parser, generate_command, section
 from heapgrasp.cli.training import config_error
 
@@ -62,9 +56,6 @@ def _data(args: argparse.Namespace) -> int:
         prefix_steps=args.prefix_steps,
         procedural=args.procedural,
         bfs_max_sets=args.bfs_max_sets,
-        start=args.start,
-        prefix_policy=args.prefix_policy,
-        prefix_epsilon=args.prefix_epsilon,
     )
 
 
@@ -228,8 +219,7 @@ def add_bench(sub: SubParsers, name: str = "bench") -> argparse.ArgumentParser:
 
 def add_data(sub: SubParsers, name: str = "data") -> argparse.ArgumentParser:
     """Adds ``viewsphere data`` (under ``name``)."""
-    from heapgrasp.viewsphere.data import LABELS, STARTS, SUPERVISED_OBJECTS
-    from heapgrasp.viewsphere.learned import MODELS
+    from heapgrasp.viewsphere.data import LABELS, SUPERVISED_OBJECTS
     from heapgrasp.viewsphere.objects import TRAIN_OBJECTS
 
     p = dataset_parser(
@@ -282,28 +272,6 @@ def add_data(sub: SubParsers, name: str = "data") -> argparse.ArgumentParser:
         default=300,
         help="with --labels bfs: syntheses per state, at most; a state whose search finds "
         "nothing within them is dropped (default 300; two levels take about 60)",
-    )
-    p.add_argument(
-        "--start",
-        choices=STARTS,
-        default="random",
-        help="random: a random pose on the viewsphere; protocol: the benchmark's start "
-        "pose, every episode's first view (default random)",
-    )
-    p.add_argument(
-        "--prefix-policy",
-        default="",
-        metavar="MODEL|FILE",
-        help="with --labels bfs and --prefix-steps: a learned policy ("
-        + ", ".join(MODELS)
-        + " for the shipped file, or a policy file) makes the moves before the state, so "
-        "the states it meets are labelled (DAgger; default: random moves)",
-    )
-    p.add_argument(
-        "--prefix-epsilon",
-        type=float_in(0.0, 1.0),
-        default=0.25,
-        help="with --prefix-policy: the chance that a move is random instead (default 0.25)",
     )
     p.add_argument(
         "--procedural",

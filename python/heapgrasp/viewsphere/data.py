@@ -3,9 +3,7 @@ random exploration from random starts, labelled with the first direction of the
 shortest path that found a grasp; or, beyond the paper, every first move of a shortest
 path found by breadth-first search (``labels="bfs"``), on states a policy meets after
 some moves (``prefix_steps``) and on procedural objects of many shapes
-(``procedural``); the moves before a state may be a learned policy's
-(``prefix_policy``: the states that policy meets, DAgger's data) from the benchmark's
-start pose (``start="protocol"``).
+(``procedural``).
 
 For every scene (a generator seeded by the dataset's root seed and the scene's index,
 so a shard re-run gives the same bytes):
@@ -13,8 +11,7 @@ so a shard re-run gives the same bytes):
 1. an object of ``objects`` (in turn; by default the 20 × 6 × 5 and 6 × 6 × 6 cm
    prisms: the supervised policies never see a test object) at a random yaw,
    and a random start on the viewsphere (azimuth uniform, polar angle uniform over
-   ``[0, max_polar]``), or with ``start="protocol"`` the benchmark's start pose
-   (:attr:`ViewsphereConfig.start`, every episode's first view);
+   ``[0, max_polar]``);
 2. a scene whose start view already yields a grasp has nothing to decide: dropped;
 3. for each of the 8 directions (one whose step falls back onto another's is left
    out), ``tries`` paths: that step first, then uniformly random ones, at most
@@ -47,11 +44,8 @@ the state), ``k`` (the scene index) and the counts ``scenes`` and ``dropped``.
 
 from __future__ import annotations
 
-import functools
-import hashlib
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
@@ -65,7 +59,6 @@ __all__ = [
     "LABELS",
     "PROCEDURAL_SEED",
     "SPEC",
-    "STARTS",
     "ViewspherePathsConfig",
     "optimal_first_moves",
     "scene_sample",
@@ -80,8 +73,6 @@ VERSION = 1
 SUPERVISED_OBJECTS = ("prism_20x6x5", "prism_6x6x6")
 #: How states are labelled (module doc).
 LABELS = ("paths", "bfs")
-#: Where a scene's camera starts (module doc).
-STARTS = ("random", "protocol")
 #: The procedural objects' generator seed (the benchmark library's is 0).
 PROCEDURAL_SEED = 1001
 
@@ -116,15 +107,6 @@ class ViewspherePathsConfig(ShardedConfig):
     """Procedural objects per kind beside ``objects``."""
     bfs_max_sets: int = 300
     """Syntheses per state for ``bfs`` labels, at most (two levels take about 60)."""
-    start: str = "random"
-    """``random`` (azimuth uniform, polar angle uniform over ``[0, max_polar]``) or
-    ``protocol`` (the benchmark's start pose)."""
-    prefix_policy: str = ""
-    """Who makes the moves before the state (``bfs`` labels): empty for uniformly random
-    moves, else a learned policy (a shipped model's name, :data:`MODELS`, or a policy
-    file), so that the states it meets are labelled (DAgger)."""
-    prefix_epsilon: float = 0.25
-    """With ``prefix_policy``: the chance that a move is random instead."""
 
     spec: ClassVar[DatasetSpec] = SPEC
 
@@ -139,18 +121,6 @@ class ViewspherePathsConfig(ShardedConfig):
                 raise ValueError(f"{name} must be an int >= 0, got {value!r}")
         if self.prefix_steps and self.labels != "bfs":
             raise ValueError("prefix_steps needs labels='bfs' (the paper's labels start fresh)")
-        if self.start not in STARTS:
-            raise ValueError(f"start must be one of {', '.join(STARTS)}, got {self.start!r}")
-        eps = self.prefix_epsilon
-        if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not 0.0 <= eps <= 1.0:
-            raise ValueError(f"prefix_epsilon must be a number in [0, 1], got {eps!r}")
-        if self.prefix_policy:
-            if self.labels != "bfs" or self.prefix_steps == 0:
-                raise ValueError(
-                    "prefix_policy needs labels='bfs' and prefix_steps >= 1 (it makes the "
-                    "moves before the state)"
-                )
-            _policy_file(self.prefix_policy)  # fails fast, naming it
         from heapgrasp.viewsphere.objects import TEST_OBJECTS, TRAIN_OBJECTS
 
         allowed = TEST_OBJECTS if self.split == "test" else TRAIN_OBJECTS
@@ -160,16 +130,6 @@ class ViewspherePathsConfig(ShardedConfig):
                 f"objects of the {self.split} split must be among {', '.join(allowed)}; "
                 f"got {', '.join(bad) or 'none'}"
             )
-
-    def identity(self) -> dict[str, Any]:
-        """The base's, and the prefix policy's file digest (shards of another file's
-        moves are not added to a dataset)."""
-        d = super().identity()
-        if self.prefix_policy:
-            d["prefix_policy_sha256"] = hashlib.sha256(
-                _policy_file(self.prefix_policy).read_bytes()
-            ).hexdigest()
-        return d
 
     def object_names(self) -> list[str]:
         from heapgrasp.sim.procedural import PROCEDURAL_KINDS
@@ -212,32 +172,6 @@ def _n_features() -> int:
     from heapgrasp.viewsphere.learned import N_FEATURES
 
     return N_FEATURES
-
-
-def _policy_file(policy: str) -> Path:
-    """The file of ``prefix_policy``: a shipped model's (ValueError when none ships) or
-    the path given (ValueError naming it when it is neither)."""
-    from heapgrasp.viewsphere.learned import MODELS, shipped_policy
-
-    if policy in MODELS:
-        path = shipped_policy(policy)
-        if path is None:
-            raise ValueError(f"prefix_policy {policy!r}: no {policy} policy ships; give a file")
-        return path
-    path = Path(policy)
-    if not path.is_file():
-        raise ValueError(
-            f"prefix_policy {policy!r} is neither a policy file nor one of {', '.join(MODELS)}"
-        )
-    return path
-
-
-@functools.lru_cache(maxsize=4)
-def _policy_network(policy: str) -> Any:
-    """The prefix policy's network, loaded once per process."""
-    from heapgrasp.inference import OnnxNetwork
-
-    return OnnxNetwork(_policy_file(policy), kind="viewsphere-policy", threads=1)
 
 
 def _object_meshes(name: str) -> list[tuple[Any, Any]]:
@@ -301,31 +235,15 @@ def optimal_first_moves(
 
 
 def _bfs_sample(
-    config: ViewspherePathsConfig,
-    world: Any,
-    start: Any,
-    rng: np.random.Generator,
-    scorer: Any,
+    config: ViewspherePathsConfig, world: Any, start: Any, rng: np.random.Generator
 ) -> tuple[list[Any], npt.NDArray[np.int64], int] | None:
-    """The state's views (after the prefix), each direction's length and the label, by
-    :func:`optimal_first_moves`; None to drop the scene."""
-    from heapgrasp.viewsphere.learned import LearnedPolicy
-    from heapgrasp.viewsphere.policies import ViewState
+    """The state's views (after the random prefix), each direction's length and the
+    label, by :func:`optimal_first_moves`; None to drop the scene."""
     from heapgrasp.viewsphere.sphere import DIRECTIONS
 
-    policy = (
-        LearnedPolicy(_policy_network(config.prefix_policy), scorer)
-        if config.prefix_policy
-        else None
-    )
     poses = [start]
     for _ in range(int(rng.integers(0, config.prefix_steps + 1))):
-        if policy is not None and rng.random() >= config.prefix_epsilon:
-            state = ViewState(poses[-1], tuple(poses), len(poses) - 1, world.grasps.fused)
-            d = policy.choose(state)
-        else:
-            d = int(rng.integers(len(DIRECTIONS)))
-        poses.append(world.sphere.move(poses[-1], d)[1])
+        poses.append(world.sphere.move(poses[-1], int(rng.integers(len(DIRECTIONS))))[1])
         if world.grasp(poses) is not None:
             return None
     vs = world.config
@@ -360,13 +278,11 @@ def scene_sample(config: ViewspherePathsConfig, index: int) -> dict[str, Any] | 
     start = SpherePose(
         float(rng.uniform(0.0, 2 * math.pi)), float(rng.uniform(0.0, sphere.max_polar))
     )
-    if config.start == "protocol":  # drawn all the same: the scenes' streams stay alike
-        start = vs.start
     if world.grasp([start]) is not None:
         return None
     scorer = vs.view_scorer(sphere, world.camera)
     if config.labels == "bfs":
-        labelled = _bfs_sample(config, world, start, rng, scorer)
+        labelled = _bfs_sample(config, world, start, rng)
         if labelled is None:
             return None
         poses, bfs_lengths, bfs_label = labelled
