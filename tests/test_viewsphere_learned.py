@@ -315,3 +315,15 @@ def test_the_dqn_trains_and_writes_a_policy_file(tmp_path: Path):
     assert network.run(np.zeros((2, N_FEATURES)))[0].shape == (2, 8)
     with pytest.raises(ValueError, match="training shapes"):
         DqnConfig(objects=("025_mug",))
+
+
+def test_the_dqn_plays_around_procedural_objects_in_turn(tmp_path: Path):
+    config = DqnConfig(episodes=2, batch=2, yaws=1, objects=("prism_6x6x6",), procedural=1)
+    assert config.object_names()[:2] == ("prism_6x6x6", "procedural/box_00")
+    assert len(config.object_names()) == 6  # one of each of the five kinds
+    metrics = train_dqn(config, tmp_path, progress=False)
+    assert [h["object"] for h in metrics["history"]] == ["prism_6x6x6", "procedural/box_00"]
+    assert metrics["config"]["procedural"] == 1
+    for bad in (-1, True, 1.5):
+        with pytest.raises(ValueError, match="procedural"):
+            DqnConfig(procedural=bad)  # type: ignore[arg-type]

@@ -69,7 +69,10 @@ def _train(args: argparse.Namespace) -> int:
                 raise config_error("--kind dqn plays episodes; it reads no --data or --val")
             try:
                 config = vt.DqnConfig(
-                    episodes=args.episodes, seed=args.seed, objects=tuple(args.objects or ())
+                    episodes=args.episodes,
+                    seed=args.seed,
+                    objects=tuple(args.objects or ()),
+                    procedural=args.procedural,
                 )
             except ValueError as exc:
                 raise config_error(str(exc)) from None
@@ -336,6 +339,14 @@ def add_train(sub: SubParsers, name: str = "train") -> argparse.ArgumentParser:
         type=comma_choices("object", tuple(TRAIN_OBJECTS)),
         default=None,
         help="dqn: training shapes (default all: " + ", ".join(TRAIN_OBJECTS) + ")",
+    )
+    p.add_argument(
+        "--procedural",
+        type=int_at_least(0),
+        default=0,
+        metavar="N",
+        help="dqn: also play around N procedural objects of each kind, in turn with the "
+        "training shapes (those of 'viewsphere data --procedural'; default 0)",
     )
     p.add_argument("--seed", type=int_at_least(0), default=0, help="random seed (default 0)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")

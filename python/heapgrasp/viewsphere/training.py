@@ -23,9 +23,11 @@ objects of many shapes), one training row per optimal direction; validated as ab
 experience replay (``replay`` transitions, batches of 64, one Adam step of learning
 rate 0.005 per move), reward +5 when the views yield a grasp and −1 per move, γ = 0.9,
 at most ``max_steps`` moves an episode. Episodes start at the benchmark's start view
-around a training shape (all six by default, as the paper's) at one of ``yaws`` yaws
-per object drawn once from the seed; worlds are kept (their renders and syntheses
-cached) for the most recent ``worlds`` (object, yaw) pairs.
+around a training shape (all six by default, as the paper's) or, with ``procedural > 0``,
+in turn around them and that many procedural objects of each kind (those of ``viewsphere
+data --procedural``), at one of ``yaws`` yaws per object drawn once from the seed;
+worlds are kept (their renders and syntheses cached) for the most recent ``worlds``
+(object, yaw) pairs.
 """
 
 from __future__ import annotations
@@ -335,6 +337,8 @@ class DqnConfig:
     episodes: int = 1300
     objects: tuple[str, ...] = ()
     """Training shapes (default: all six)."""
+    procedural: int = 0
+    """Procedural objects per kind beside ``objects`` (:mod:`heapgrasp.viewsphere.data`'s)."""
     yaws: int = 12
     seed: int = 0
     hidden: int = 128
@@ -355,6 +359,10 @@ class DqnConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an int >= 1, got {value!r}")
+        if isinstance(self.procedural, bool) or not isinstance(self.procedural, int):
+            raise ValueError(f"procedural must be an int >= 0, got {self.procedural!r}")
+        if self.procedural < 0:
+            raise ValueError(f"procedural must be an int >= 0, got {self.procedural!r}")
         if not 0.0 < self.learning_rate < 1.0:
             raise ValueError(f"learning_rate must be in (0, 1), got {self.learning_rate}")
         if not 0.0 <= self.gamma < 1.0:
@@ -370,6 +378,16 @@ class DqnConfig:
                 + ", ".join(bad)
             )
 
+    def object_names(self) -> tuple[str, ...]:
+        """The episodes' objects in turn: the training shapes, then the procedural ones."""
+        from heapgrasp.sim.procedural import PROCEDURAL_KINDS
+        from heapgrasp.viewsphere.objects import TRAIN_OBJECTS
+
+        extra = tuple(
+            f"procedural/{k}_{i:02d}" for k in PROCEDURAL_KINDS for i in range(self.procedural)
+        )
+        return (*(self.objects or tuple(TRAIN_OBJECTS)), *extra)
+
 
 @dataclass
 class _Worlds:
@@ -380,14 +398,18 @@ class _Worlds:
     cache: OrderedDict[tuple[str, float], Any] = field(default_factory=OrderedDict)
 
     def get(self, name: str, yaw: float) -> Any:
-        from heapgrasp.viewsphere.objects import stand_ins
+        from heapgrasp.viewsphere.data import _object_meshes
         from heapgrasp.viewsphere.world import ViewsphereWorld
 
         key = (name, yaw)
         if key in self.cache:
             self.cache.move_to_end(key)
             return self.cache[key]
-        world = ViewsphereWorld(list(stand_ins([name])[0].posed(yaw)), config=self.config)
+        c, s = math.cos(yaw), math.sin(yaw)
+        turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        world = ViewsphereWorld(
+            [(v @ turn.T, f) for v, f in _object_meshes(name)], config=self.config
+        )
         self.cache[key] = world
         while len(self.cache) > self.limit:
             self.cache.popitem(last=False)
@@ -410,13 +432,12 @@ def train_dqn(
     from tqdm import tqdm  # type: ignore[import-untyped,unused-ignore]
 
     from heapgrasp.viewsphere.learned import N_FEATURES, policy_onnx, state_features
-    from heapgrasp.viewsphere.objects import TRAIN_OBJECTS
     from heapgrasp.viewsphere.sphere import DIRECTIONS
 
     t0 = time.perf_counter()
     rng = np.random.default_rng(config.seed)
     torch.manual_seed(config.seed)
-    objects = config.objects or tuple(TRAIN_OBJECTS)
+    objects = config.object_names()
     yaws = {o: rng.uniform(0, 2 * math.pi, config.yaws).round(6).tolist() for o in objects}
     vs = ViewsphereConfig()
     worlds = _Worlds(config.worlds, vs)
@@ -512,7 +533,10 @@ def train_dqn(
     onnx_bytes = policy_onnx(
         layers,
         hparams={"model": "dqn", "hidden": config.hidden, "layers": config.layers},
-        provenance=_provenance({"objects": list(objects), "yaws": config.yaws}, summary),
+        provenance=_provenance(
+            {"objects": list(objects), "yaws": config.yaws, "procedural": config.procedural},
+            summary,
+        ),
     )
     out.mkdir(parents=True, exist_ok=True)
     write_atomically(onnx_bytes, out / "viewsphere_dqn.onnx")
