@@ -290,6 +290,7 @@ def add_data(sub: SubParsers, name: str = "data") -> argparse.ArgumentParser:
 def add_train(sub: SubParsers, name: str = "train") -> argparse.ArgumentParser:
     """Adds ``viewsphere train`` (under ``name``)."""
     from heapgrasp.viewsphere.objects import TRAIN_OBJECTS
+    from heapgrasp.viewsphere.training import DqnConfig
 
     p = sub.add_parser(
         name,
@@ -304,12 +305,13 @@ def add_train(sub: SubParsers, name: str = "train") -> argparse.ArgumentParser:
               heapgrasp viewsphere data runs/vs-val --scenes 200 --seed 1
               heapgrasp viewsphere train --kind pca-lr --data runs/vs-train \\
                   --val runs/vs-val --out runs/vs-pca-lr
-              heapgrasp viewsphere train --kind dqn --episodes 1300 --out runs/vs-dqn
+              heapgrasp viewsphere train --kind dqn --out runs/vs-dqn
 
             pca-lr / pca-lda: scikit-learn on the paths datasets (standardise, PCA to 85 %
             of the variance, logistic regression or LDA), folded into one ONNX layer.
-            dqn: PyTorch deep Q-learning by playing episodes on the training shapes in
-            the simulator (4 x 128 ReLU, epsilon-greedy, replay, +5 grasp / -1 a move,
+            dqn: PyTorch deep Q-learning by playing episodes on the training shapes and
+            procedural objects in the simulator (the paper's: --procedural 0 --episodes
+            1300; 4 x 128 ReLU, epsilon-greedy, replay, +5 grasp / -1 a move,
             gamma 0.9, learning rate 0.005, batch 64). Needs pip install 'heapgrasp[train]'.
             Copy a file to python/heapgrasp/weights/ to ship it; 'heapgrasp viewsphere
             bench --weights MODEL=FILE' runs one without shipping it.
@@ -332,7 +334,10 @@ def add_train(sub: SubParsers, name: str = "train") -> argparse.ArgumentParser:
     )
     p.add_argument("--out", required=True, metavar="OUT", help="output directory")
     p.add_argument(
-        "--episodes", type=int_at_least(1), default=1300, help="dqn: episodes (default 1300)"
+        "--episodes",
+        type=int_at_least(1),
+        default=DqnConfig.episodes,
+        help=f"dqn: episodes (default {DqnConfig.episodes}; the paper's 1300)",
     )
     p.add_argument(
         "--objects",
@@ -343,10 +348,11 @@ def add_train(sub: SubParsers, name: str = "train") -> argparse.ArgumentParser:
     p.add_argument(
         "--procedural",
         type=int_at_least(0),
-        default=0,
+        default=DqnConfig.procedural,
         metavar="N",
         help="dqn: also play around N procedural objects of each kind, in turn with the "
-        "training shapes (those of 'viewsphere data --procedural'; default 0)",
+        "training shapes (those of 'viewsphere data --procedural'; default "
+        f"{DqnConfig.procedural}; 0: the paper's shapes alone)",
     )
     p.add_argument("--seed", type=int_at_least(0), default=0, help="random seed (default 0)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -334,11 +334,13 @@ def train_mlp(
 class DqnConfig:
     """What :func:`train_dqn` runs (module doc)."""
 
-    episodes: int = 1300
+    episodes: int = 2600
+    """Episodes (the paper's 1,300, on its six shapes only)."""
     objects: tuple[str, ...] = ()
     """Training shapes (default: all six)."""
-    procedural: int = 0
-    """Procedural objects per kind beside ``objects`` (:mod:`heapgrasp.viewsphere.data`'s)."""
+    procedural: int = 8
+    """Procedural objects per kind beside ``objects`` (:mod:`heapgrasp.viewsphere.data`'s;
+    0: the paper's shapes alone)."""
     yaws: int = 12
     seed: int = 0
     hidden: int = 128
